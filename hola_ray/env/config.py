@@ -1,0 +1,313 @@
+"""Typed, validated configuration of the pursuit arena (SPEC §1) and its evader (SPEC §2).
+
+Every number of the scenario lives here as a field with a default; nothing downstream
+hard-codes one. A bad value fails at construction, naming the field and the allowed range.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+Rect = tuple[float, float, float, float]
+"""An axis-aligned box as (centre_x, centre_y, width, height), metres."""
+
+Region = tuple[float, float, float, float]
+"""A spawn region as (x_min, x_max, y_min, y_max), metres."""
+
+
+class ConfigError(ValueError):
+    """A configuration value is missing, unknown or outside its allowed range."""
+
+
+def _require(ok: bool, name: str, allowed: str, value: Any) -> None:
+    if not ok:
+        raise ConfigError(f"{name} must be {allowed}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class EvaderConfig:
+    """The DACOOP escaper (SPEC §2); distances in metres, converted from DACOOP's millimetres."""
+
+    sensitivity_range: float = 2.0
+    """pursuers farther than this are ignored by the flee force and the panic level"""
+    panic_threshold: float = 0.2
+    """below this panic level (and clear of obstacles) the evader wanders"""
+    wander_clearance: float = 0.3
+    """wandering needs the nearest obstacle farther than this"""
+    wander_hold_min: int = 10
+    """fewest steps a wander heading is held"""
+    wander_hold_max: int = 15
+    """most steps a wander heading is held"""
+    repulsion_gain: float = 0.01
+    """η of the obstacle repulsion η·(1/(d − r) − 1/R)/(d − r)²  (DACOOP's 1e7 in mm units)"""
+    repulsion_range: float = 0.8
+    """R: obstacles farther than this do not repel"""
+    repulsion_offset: float = 0.1
+    """r: the drone safe radius subtracted from obstacle distances in the repulsion"""
+    wall_follow_switch_distance: float = 0.4
+    """a pursuer nearer than this may make the evader switch wall-following tangent"""
+    wall_follow_push_distance: float = 0.05
+    """nearer than this to an obstacle, the repulsion is added to the wall-following tangent"""
+    slip_range: float = 0.5
+    """slipping is considered when two pursuers are nearer than this"""
+    slip_start_clearance: float = 0.3
+    """a slip starts only with an obstacle nearer than this (DACOOP)"""
+    slip_keep_clearance: float = 0.1
+    """a slip continues only while obstacles are farther than this (DACOOP)"""
+    max_turn: float = math.pi / 6
+    """most heading change per step, radians (30°)"""
+    min_clearance: float = 0.03
+    """a step that would end nearer than this to an obstacle or wall is not taken (DACOOP)"""
+
+    def __post_init__(self) -> None:
+        for name in (
+            "sensitivity_range",
+            "repulsion_range",
+            "wall_follow_switch_distance",
+            "slip_range",
+        ):
+            value = getattr(self, name)
+            _require(math.isfinite(value) and value > 0, f"evader.{name}", "> 0", value)
+        for name in (
+            "repulsion_gain",
+            "repulsion_offset",
+            "wall_follow_push_distance",
+            "slip_start_clearance",
+            "slip_keep_clearance",
+            "min_clearance",
+            "wander_clearance",
+        ):
+            value = getattr(self, name)
+            _require(math.isfinite(value) and value >= 0, f"evader.{name}", ">= 0", value)
+        _require(
+            0 <= self.panic_threshold <= 1, "evader.panic_threshold", "in [0, 1]", self.panic_threshold
+        )
+        _require(self.wander_hold_min >= 1, "evader.wander_hold_min", ">= 1", self.wander_hold_min)
+        _require(
+            self.wander_hold_max >= self.wander_hold_min,
+            "evader.wander_hold_max",
+            f">= wander_hold_min ({self.wander_hold_min})",
+            self.wander_hold_max,
+        )
+        _require(0 < self.max_turn <= math.pi, "evader.max_turn", "in (0, π]", self.max_turn)
+        _require(
+            self.repulsion_offset < self.repulsion_range,
+            "evader.repulsion_offset",
+            f"< repulsion_range ({self.repulsion_range})",
+            self.repulsion_offset,
+        )
+
+
+@dataclass(frozen=True)
+class PursuitConfig:
+    """The pursuit scenario of SPEC §1 (paper Table I). Units: metres, seconds, radians."""
+
+    arena_width: float = 3.6
+    """arena extent along x; the walls are obstacles"""
+    arena_height: float = 5.0
+    """arena extent along y"""
+    obstacles: tuple[Rect, ...] = (
+        (1.225, 1.05, 0.65, 0.10),
+        (2.375, 1.05, 0.65, 0.10),
+        (1.80, 2.50, 0.65, 0.10),
+        (1.225, 3.95, 0.65, 0.10),
+        (2.375, 3.95, 0.65, 0.10),
+    )
+    """bars as (centre_x, centre_y, width, height)"""
+    n_pursuers: int = 3
+    """pursuers per episode (the learner and its teammates)"""
+    n_evaders: int = 2
+    """evaders per episode"""
+    pursuer_spawn: Region = (0.2, 3.4, 0.2, 0.8)
+    """pursuer spawn region (x_min, x_max, y_min, y_max); pursuers start heading +y"""
+    evader_spawn: Region = (0.2, 3.4, 4.2, 4.8)
+    """evader spawn region (x_min, x_max, y_min, y_max); evaders start heading −y"""
+    spawn_separation: float = 0.3
+    """drones of one team spawn at least this far apart"""
+    dt: float = 0.1
+    """seconds per step (10 fps)"""
+    horizon: int = 1000
+    """steps before truncation (100 s)"""
+    pursuer_speed: float = 0.3
+    """constant pursuer speed, m/s"""
+    evader_speed: float = 0.6
+    """constant evader speed, m/s"""
+    max_turn: float = math.pi / 4
+    """a pursuer action a ∈ [0, 1] turns the heading by (2a − 1)·max_turn"""
+    capture_distance: float = 0.2
+    """d_c: an active pursuer nearer than this captures an evader"""
+    perception_range: float = 2.0
+    """d_p: teammates farther than this are not observed"""
+    safe_radius: float = 0.1
+    """d_s: a pursuer nearer than this to an obstacle, wall or disabled pursuer collides"""
+    pursuer_collision_distance: float = 0.2
+    """κ: two active pursuers nearer than this both collide"""
+    obs_distance_scale: float = 5.0
+    """observed distances are divided by this"""
+    unobserved_distance: float = 2.0
+    """the distance reading of a captured evader or an unobserved teammate"""
+    capture_reward: float = 10.0
+    """reward to every pursuer for each evader captured this step"""
+    collision_penalty: float = 10.0
+    """subtracted from the reward of a pursuer that collides this step"""
+    approach_scale: float = 0.3
+    """the approach term is Σ (d_prev − d_now) / approach_scale over live evaders"""
+    evader: EvaderConfig = field(default_factory=EvaderConfig)
+    """the escaper's parameters (SPEC §2)"""
+
+    def __post_init__(self) -> None:
+        positive = (
+            "arena_width",
+            "arena_height",
+            "dt",
+            "pursuer_speed",
+            "evader_speed",
+            "capture_distance",
+            "perception_range",
+            "obs_distance_scale",
+            "approach_scale",
+            "max_turn",
+        )
+        for name in positive:
+            value = getattr(self, name)
+            _require(
+                isinstance(value, int | float) and math.isfinite(value) and value > 0,
+                name,
+                "a finite number > 0",
+                value,
+            )
+        for name in (
+            "safe_radius",
+            "pursuer_collision_distance",
+            "spawn_separation",
+            "capture_reward",
+            "collision_penalty",
+            "unobserved_distance",
+        ):
+            value = getattr(self, name)
+            _require(
+                isinstance(value, int | float) and math.isfinite(value) and value >= 0,
+                name,
+                "a finite number >= 0",
+                value,
+            )
+        _require(self.max_turn <= math.pi, "max_turn", "in (0, π]", self.max_turn)
+        diagonal = math.hypot(self.arena_width, self.arena_height) / self.obs_distance_scale
+        _require(
+            self.unobserved_distance > diagonal,
+            "unobserved_distance",
+            f"> the largest observable distance reading ({diagonal:.3f}), so it is unambiguous",
+            self.unobserved_distance,
+        )
+        for name in ("n_pursuers", "n_evaders", "horizon"):
+            value = getattr(self, name)
+            _require(isinstance(value, int) and value >= 1, name, "an integer >= 1", value)
+        for i, rect in enumerate(self.obstacles):
+            name = f"obstacles[{i}]"
+            _require(len(rect) == 4, name, "(centre_x, centre_y, width, height)", rect)
+            cx, cy, w, h = rect
+            _require(w > 0 and h > 0, name, "of positive width and height", rect)
+            inside = (
+                cx - w / 2 >= 0
+                and cx + w / 2 <= self.arena_width
+                and cy - h / 2 >= 0
+                and cy + h / 2 <= self.arena_height
+            )
+            _require(
+                inside,
+                name,
+                f"inside the arena [0, {self.arena_width}] × [0, {self.arena_height}]",
+                rect,
+            )
+        for name in ("pursuer_spawn", "evader_spawn"):
+            region = getattr(self, name)
+            _require(len(region) == 4, name, "(x_min, x_max, y_min, y_max)", region)
+            x0, x1, y0, y1 = region
+            inside = 0 <= x0 <= x1 <= self.arena_width and 0 <= y0 <= y1 <= self.arena_height
+            _require(
+                inside,
+                name,
+                f"an ordered region inside [0, {self.arena_width}] × [0, {self.arena_height}]",
+                region,
+            )
+        # Rejection sampling must be able to place every drone: a loose packing bound.
+        for name, count in (("pursuer_spawn", self.n_pursuers), ("evader_spawn", self.n_evaders)):
+            x0, x1, y0, y1 = getattr(self, name)
+            s = self.spawn_separation
+            capacity = (math.floor((x1 - x0) / s) + 1) * (math.floor((y1 - y0) / s) + 1) if s else 10**9
+            _require(
+                capacity >= 2 * count,
+                name,
+                f"large enough to place {count} drones {s} m apart with room to spare",
+                getattr(self, name),
+            )
+
+    # ---- derived values -------------------------------------------------------------
+    @property
+    def obs_dim(self) -> int:
+        """Length of one pursuer's observation (see `ObsLayout`)."""
+        return 3 * self.n_evaders + 2 + 2 * (self.n_pursuers - 1) + 4
+
+    @property
+    def pursuer_step(self) -> float:
+        """Distance a pursuer covers per step."""
+        return self.pursuer_speed * self.dt
+
+    @property
+    def evader_step(self) -> float:
+        """Distance an evader covers per step."""
+        return self.evader_speed * self.dt
+
+    # ---- (de)serialisation ----------------------------------------------------------
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> PursuitConfig:
+        """Build from a plain mapping (YAML); unknown keys are an error."""
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"a pursuit config must be a mapping, got {type(data).__name__}")
+        kwargs = _consume(cls, data, "")
+        evader = kwargs.pop("evader", None)
+        if evader is not None:
+            if not isinstance(evader, Mapping):
+                raise ConfigError(f"evader must be a mapping, got {evader!r}")
+            kwargs["evader"] = EvaderConfig(**_consume(EvaderConfig, evader, "evader."))
+        for key in ("obstacles",):
+            if key in kwargs:
+                kwargs[key] = tuple(tuple(float(v) for v in rect) for rect in kwargs[key])
+        for key in ("pursuer_spawn", "evader_spawn"):
+            if key in kwargs:
+                kwargs[key] = tuple(float(v) for v in kwargs[key])
+        return cls(**kwargs)
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> PursuitConfig:
+        """Load from a YAML file holding the mapping (or an `env:` section of it)."""
+        data = yaml.safe_load(Path(path).read_text()) or {}
+        if "env" in data and isinstance(data["env"], Mapping):
+            data = data["env"]
+        return cls.from_dict(data)
+
+    def to_dict(self) -> dict[str, Any]:
+        """A plain, YAML-safe mapping that `from_dict` reads back to an equal config."""
+        out = dataclasses.asdict(self)
+        out["obstacles"] = [list(rect) for rect in self.obstacles]
+        out["pursuer_spawn"] = list(self.pursuer_spawn)
+        out["evader_spawn"] = list(self.evader_spawn)
+        return out
+
+
+def _consume(cls: type, data: Mapping[str, Any], prefix: str) -> dict[str, Any]:
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise ConfigError(
+            f"unknown key(s) {', '.join(prefix + k for k in unknown)}; "
+            f"allowed: {', '.join(sorted(names))}"
+        )
+    return dict(data)

@@ -1,0 +1,80 @@
+"""Where each reading sits in a pursuer's observation vector (SPEC §1), derived from the config."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hola_ray.env.config import PursuitConfig
+
+
+@dataclass(frozen=True)
+class ObsLayout:
+    """Offsets into one pursuer's observation.
+
+    `[evaders: n_e × (distance, bearing, relative heading)]`
+    `[nearest obstacle: (distance, bearing)]`
+    `[other pursuers: (n_p − 1) × (distance, bearing)]`
+    `[own: x, y, cos θ, sin θ]`
+
+    Distances are divided by `obs_distance_scale`, angles by π and are relative to the
+    observer's heading (positive = to its left).
+    """
+
+    n_pursuers: int
+    """pursuers in the scenario"""
+    n_evaders: int
+    """evaders in the scenario"""
+
+    @classmethod
+    def from_config(cls, config: PursuitConfig) -> ObsLayout:
+        return cls(config.n_pursuers, config.n_evaders)
+
+    @property
+    def evaders(self) -> int:
+        """Offset of the first evader triple."""
+        return 0
+
+    @property
+    def obstacle(self) -> int:
+        """Offset of the nearest-obstacle pair."""
+        return 3 * self.n_evaders
+
+    @property
+    def teammates(self) -> int:
+        """Offset of the first teammate pair."""
+        return self.obstacle + 2
+
+    @property
+    def own(self) -> int:
+        """Offset of (x, y, cos θ, sin θ)."""
+        return self.teammates + 2 * (self.n_pursuers - 1)
+
+    @property
+    def dim(self) -> int:
+        """Length of the observation."""
+        return self.own + 4
+
+    def bounds(self, config: PursuitConfig) -> tuple[np.ndarray, np.ndarray]:
+        """Elementwise (low, high) of the observation, for its `Box` space."""
+        far = max(config.unobserved_distance, _arena_diagonal(config) / config.obs_distance_scale)
+        low = np.zeros(self.dim, dtype=np.float32)
+        high = np.zeros(self.dim, dtype=np.float32)
+        for e in range(self.n_evaders):
+            i = self.evaders + 3 * e
+            low[i : i + 3] = (0.0, -1.0, -1.0)
+            high[i : i + 3] = (far, 1.0, 1.0)
+        low[self.obstacle : self.obstacle + 2] = (0.0, -1.0)
+        high[self.obstacle : self.obstacle + 2] = (far, 1.0)
+        for j in range(self.n_pursuers - 1):
+            i = self.teammates + 2 * j
+            low[i : i + 2] = (0.0, -1.0)
+            high[i : i + 2] = (far, 1.0)
+        low[self.own : self.own + 4] = (0.0, 0.0, -1.0, -1.0)
+        high[self.own : self.own + 4] = (1.0, 1.0, 1.0, 1.0)
+        return low, high
+
+
+def _arena_diagonal(config: PursuitConfig) -> float:
+    return float(np.hypot(config.arena_width, config.arena_height))

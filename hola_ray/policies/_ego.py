@@ -1,0 +1,36 @@
+"""Compiled helpers that read a pursuer's observation in its own frame (x ahead, y left)."""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+
+@njit(cache=True, inline="always")
+def point(obs, n, k, scale):
+    """(x, y, distance) in metres of the (distance, bearing) pair at obs[n, k:k+2]."""
+    d = obs[n, k] * scale
+    a = obs[n, k + 1] * math.pi
+    return d * math.cos(a), d * math.sin(a), d
+
+
+@njit(cache=True)
+def nearest_live_evader(obs, n, n_evaders, far):
+    """Index of the nearest live evader of row n, or −1 when all are captured."""
+    best = -1
+    best_d = far
+    for e in range(n_evaders):
+        d = obs[n, 3 * e]
+        if d < best_d:
+            best, best_d = e, d
+    return best
+
+
+@njit(cache=True, inline="always")
+def to_action(fx, fy, max_turn):
+    """Action in [0, 1] turning toward direction (fx, fy) of the own frame; 0.5 if zero."""
+    if fx == 0.0 and fy == 0.0:
+        return 0.5
+    a = 0.5 + math.atan2(fy, fx) / (2.0 * max_turn)
+    return min(max(a, 0.0), 1.0)

@@ -1,0 +1,48 @@
+"""The one interface every pursuer policy sits behind (SPEC §3).
+
+A policy maps a batch of observations [N, obs_dim] to a batch of actions [N] in [0, 1],
+so that any mix of policies can fill any pursuer slots. Policies that keep per-episode
+state are bound to a fixed number of rows and clear the rows of `reset(mask)`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.env.layout import ObsLayout
+
+
+class Policy(ABC):
+    """A pursuer policy: observations [N, obs_dim] → actions [N] in [0, 1]."""
+
+    name: str = "policy"
+
+    def __init__(self, config: PursuitConfig) -> None:
+        self.config = config
+        self.layout = ObsLayout.from_config(config)
+
+    @abstractmethod
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """Actions [N] in [0, 1] for observations [N, obs_dim]."""
+
+    def reset(self, mask: np.ndarray | None = None) -> None:  # noqa: B027 - stateless default
+        """Forget the per-episode state of the rows in mask (all rows when None)."""
+
+    def _check(self, obs: np.ndarray) -> np.ndarray:
+        obs = np.asarray(obs, dtype=np.float32)
+        if obs.ndim != 2 or obs.shape[1] != self.layout.dim:
+            raise ValueError(
+                f"{self.name} expects observations [N, {self.layout.dim}], got {obs.shape}"
+            )
+        return obs
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name!r})"
+
+
+def turn_to_action(turn: np.ndarray | float, max_turn: float) -> np.ndarray | float:
+    """The action in [0, 1] whose heading change (2a − 1)·max_turn is nearest to `turn`."""
+    return np.clip(0.5 + np.asarray(turn) / (2.0 * max_turn), 0.0, 1.0)
