@@ -1,0 +1,86 @@
+"""Record one episode's true state step by step, for replays and plots."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.env.core import BatchedPursuit
+from hola_ray.policies.base import Policy
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """States at steps 0..T of one episode, and its events."""
+
+    pursuer_pos: np.ndarray  # [T + 1, n_p, 2]
+    pursuer_heading: np.ndarray  # [T + 1, n_p]
+    pursuer_active: np.ndarray  # [T + 1, n_p] bool
+    evader_pos: np.ndarray  # [T + 1, n_e, 2]
+    evader_heading: np.ndarray  # [T + 1, n_e]
+    evader_alive: np.ndarray  # [T + 1, n_e] bool
+    captures: list[tuple[int, int, tuple[float, float]]]  # (step, evader, where)
+    collisions: list[tuple[int, int, tuple[float, float]]]  # (step, pursuer, where)
+    metrics: dict[str, Any]
+    policy_names: list[str]
+
+    @property
+    def steps(self) -> int:
+        return int(self.pursuer_pos.shape[0] - 1)
+
+
+def record(
+    config: PursuitConfig,
+    team: Sequence[Policy],
+    seed: int = 0,
+    initial_state: Mapping[str, np.ndarray] | None = None,
+) -> Trajectory:
+    """Play one episode with `team[i]` in pursuer slot i and record every state."""
+    if len(team) != config.n_pursuers:
+        raise ValueError(f"team must hold {config.n_pursuers} policies, got {len(team)}")
+    env = BatchedPursuit(config, 1)
+    obs = env.reset(seeds=[seed], initial_state={0: initial_state} if initial_state else None)
+    for policy in team:
+        policy.reset(np.ones(1, dtype=bool))
+    frames: dict[str, list[np.ndarray]] = {
+        key: []
+        for key in (
+            "pursuer_pos",
+            "pursuer_heading",
+            "pursuer_active",
+            "evader_pos",
+            "evader_heading",
+            "evader_alive",
+        )
+    }
+    captures: list[tuple[int, int, tuple[float, float]]] = []
+    collisions: list[tuple[int, int, tuple[float, float]]] = []
+
+    def snapshot() -> None:
+        for key, store in frames.items():
+            store.append(getattr(env, key)[0].copy())
+
+    snapshot()
+    actions = np.empty((1, config.n_pursuers))
+    while not env.done[0]:
+        for i, policy in enumerate(team):
+            actions[0, i] = policy.act(obs[:, i])[0]
+        alive_before = env.evader_alive[0].copy()
+        result = env.step(actions)
+        obs = result.obs
+        for e in np.flatnonzero(alive_before & ~env.evader_alive[0]):
+            captures.append((int(env.t[0]), int(e), tuple(env.evader_pos[0, e].tolist())))
+        for i in np.flatnonzero(result.disabled[0]):
+            collisions.append((int(env.t[0]), int(i), tuple(env.pursuer_pos[0, i].tolist())))
+        snapshot()
+    return Trajectory(
+        **{key: np.stack(store) for key, store in frames.items()},
+        captures=captures,
+        collisions=collisions,
+        metrics=env.episode_metrics(0),
+        policy_names=[p.name for p in team],
+    )

@@ -1,0 +1,58 @@
+import math
+
+import pytest
+import yaml
+
+from hola_ray.env import ConfigError, EvaderConfig, PursuitConfig
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "allowed"),
+    [
+        ({"pursuer_speed": -0.3}, "pursuer_speed", "> 0"),
+        ({"evader_speed": 0.0}, "evader_speed", "> 0"),
+        ({"n_pursuers": 0}, "n_pursuers", ">= 1"),
+        ({"n_evaders": 0}, "n_evaders", ">= 1"),
+        ({"horizon": 0}, "horizon", ">= 1"),
+        ({"dt": float("nan")}, "dt", "> 0"),
+        ({"obstacles": [[3.5, 1.0, 0.65, 0.1]]}, "obstacles[0]", "inside the arena"),
+        ({"obstacles": [[1.0, 1.0, -0.65, 0.1]]}, "obstacles[0]", "positive width"),
+        ({"pursuer_spawn": [0.2, 3.4, 0.2, 5.8]}, "pursuer_spawn", "inside"),
+        ({"capture_distance": -1}, "capture_distance", "> 0"),
+        ({"unobserved_distance": 1.0}, "unobserved_distance", "largest observable"),
+        ({"evader": {"max_turn": 4.0}}, "evader.max_turn", "(0, π]"),
+        ({"evader": {"wander_hold_max": 5}}, "evader.wander_hold_max", ">= wander_hold_min"),
+    ],
+)
+def test_bad_values_name_the_field_and_range(change, field, allowed):
+    with pytest.raises(ConfigError) as err:
+        PursuitConfig.from_dict(change)
+    message = str(err.value)
+    assert message.startswith(field), message
+    assert allowed in message
+
+
+def test_unknown_keys_are_rejected():
+    with pytest.raises(ConfigError, match="unknown key.*n_pursuer\\b"):
+        PursuitConfig.from_dict({"n_pursuer": 3})
+    with pytest.raises(ConfigError, match="evader.speed"):
+        PursuitConfig.from_dict({"evader": {"speed": 1.0}})
+
+
+def test_defaults_match_spec_table():
+    cfg = PursuitConfig()
+    assert (cfg.arena_width, cfg.arena_height) == (3.6, 5.0)
+    assert len(cfg.obstacles) == 5 and all(o[2:] == (0.65, 0.10) for o in cfg.obstacles)
+    assert (cfg.pursuer_speed, cfg.evader_speed, cfg.dt, cfg.horizon) == (0.3, 0.6, 0.1, 1000)
+    assert (cfg.capture_distance, cfg.perception_range, cfg.safe_radius) == (0.2, 2.0, 0.1)
+    assert cfg.pursuer_collision_distance == 0.2
+    assert math.isclose(cfg.evader.max_turn, math.radians(30))
+    # 2 evaders × 3 + obstacle 2 + 2 teammates × 2 + own 4
+    assert cfg.obs_dim == 16
+
+
+def test_yaml_round_trip(tmp_path):
+    cfg = PursuitConfig(n_pursuers=4, n_evaders=1, evader=EvaderConfig(slip_range=0.4))
+    path = tmp_path / "env.yaml"
+    path.write_text(yaml.safe_dump({"env": cfg.to_dict()}))
+    assert PursuitConfig.from_yaml(path) == cfg

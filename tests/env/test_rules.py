@@ -1,0 +1,186 @@
+"""Hand-worked geometry and the rules of SPEC §1 on the batched core."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from hola_ray.env import BatchedPursuit, PursuitConfig
+
+UP = math.pi / 2
+
+
+def single(config, **state):
+    env = BatchedPursuit(config, 1)
+    env.reset(seeds=[0], initial_state={0: state})
+    return env
+
+
+def far_evaders(config):
+    """Evaders parked in the top corners, away from everything in these tests."""
+    return np.array([[0.4, 4.6], [3.2, 4.6]])[: config.n_evaders]
+
+
+@pytest.mark.parametrize(("gap", "caught"), [(0.19, True), (0.21, False)])
+def test_capture_distance(frozen_config, gap, caught):
+    evaders = far_evaders(frozen_config)
+    pursuers = np.array([[evaders[0, 0] + gap, 4.6], [1.5, 2.0], [2.5, 3.0]])
+    env = single(frozen_config, pursuer_pos=pursuers, evader_pos=evaders)
+    result = env.step(np.full((1, 3), 0.5))
+    assert env.evader_alive[0, 0] == (not caught)
+    assert env.captures[0] == int(caught)
+    # the capture bonus of +10 goes to every pursuer (the approach term is ~1e-6 here)
+    np.testing.assert_allclose(result.reward[0], 10.0 * caught, atol=1e-4)
+    assert env.pursuer_active[0].all()
+
+
+def test_captured_evader_reads_far_and_stops(frozen_config):
+    evaders = far_evaders(frozen_config)
+    pursuers = np.array([[evaders[0, 0] + 0.1, 4.6], [1.5, 2.0], [2.5, 3.0]])
+    env = single(frozen_config, pursuer_pos=pursuers, evader_pos=evaders)
+    env.step(np.full((1, 3), 0.5))
+    where = env.evader_pos[0, 0].copy()
+    for _ in range(5):
+        env.step(np.full((1, 3), 0.5))
+    np.testing.assert_array_equal(env.evader_pos[0, 0], where)
+    np.testing.assert_array_equal(env.obs[0, :, 0:3], np.tile([2.0, 0.0, 0.0], (3, 1)))
+
+
+def test_two_pursuers_closer_than_kappa_both_collide(frozen_config):
+    pursuers = np.array([[1.5, 2.0], [1.69, 2.0], [3.0, 3.0]])  # 0.19 apart
+    env = single(frozen_config, pursuer_pos=pursuers, evader_pos=far_evaders(frozen_config))
+    result = env.step(np.full((1, 3), 0.5))
+    assert result.disabled[0].tolist() == [True, True, False]
+    assert env.pursuer_active[0].tolist() == [False, False, True]
+    np.testing.assert_allclose(result.reward[0, :2], -10.0, atol=1e-4)
+    assert env.collided[0] and not env.done[0]
+
+
+def test_pursuers_at_021_do_not_collide(frozen_config):
+    pursuers = np.array([[1.5, 2.0], [1.71, 2.0], [3.0, 3.0]])
+    env = single(frozen_config, pursuer_pos=pursuers, evader_pos=far_evaders(frozen_config))
+    result = env.step(np.full((1, 3), 0.5))
+    assert not result.disabled.any() and not env.collided[0]
+
+
+def test_pursuer_009_from_wall_collides(config):
+    # 0.12 from the left wall heading −x, going straight: 0.12 − 0.3·0.1 = 0.09 < d_s = 0.1
+    pursuers = np.array([[0.12, 2.0], [1.5, 3.0], [2.5, 3.0]])
+    env = single(
+        config,
+        pursuer_pos=pursuers,
+        pursuer_heading=np.array([math.pi, UP, UP]),
+        evader_pos=far_evaders(config),
+    )
+    result = env.step(np.full((1, 3), 0.5))
+    np.testing.assert_allclose(env.pursuer_pos[0, 0], [0.09, 2.0], atol=1e-12)
+    assert result.disabled[0].tolist() == [True, False, False]
+
+
+def test_pursuer_011_from_bar_is_safe_and_009_collides(frozen_config):
+    # bar 3 spans y ∈ [2.45, 2.55] around x = 1.8
+    for gap, hit in ((0.11, False), (0.09, True)):
+        pursuers = np.array([[1.8, 2.45 - gap], [0.5, 3.0], [3.0, 3.0]])
+        env = single(frozen_config, pursuer_pos=pursuers, evader_pos=far_evaders(frozen_config))
+        assert env.step(np.full((1, 3), 0.5)).disabled[0, 0] == hit
+
+
+def test_collided_pursuer_stops_and_episode_goes_on(config):
+    pursuers = np.array([[0.12, 2.0], [1.5, 3.0], [2.5, 3.0]])
+    env = single(
+        config,
+        pursuer_pos=pursuers,
+        pursuer_heading=np.array([math.pi, UP, -UP]),
+        evader_pos=far_evaders(config),
+    )
+    env.step(np.full((1, 3), 0.5))
+    stopped = env.pursuer_pos[0, 0].copy()
+    for _ in range(10):
+        result = env.step(np.array([[1.0, 0.5, 0.5]]))
+        assert result.reward[0, 0] == 0.0
+    np.testing.assert_array_equal(env.pursuer_pos[0, 0], stopped)
+    assert not env.done[0] and env.t[0] == 11
+
+
+def test_disabled_pursuer_is_an_obstacle_not_a_teammate(frozen_config):
+    # P0 sits 0.09 from the left wall and collides; P1, 0.31 to its right heading +y, then
+    # sees it as its nearest obstacle point (the wall is 0.4 away) at bearing π − π/2 = +π/2.
+    pursuers = np.array([[0.09, 2.0], [0.4, 2.0], [3.0, 3.0]])
+    env = single(frozen_config, pursuer_pos=pursuers, evader_pos=far_evaders(frozen_config))
+    assert env.step(np.full((1, 3), 0.5)).disabled[0].tolist() == [True, False, False]
+    obs = env.obs[0]
+    assert obs[1, 8:10].tolist() == [2.0, 0.0]  # P1's reading of teammate P0: unobserved
+    assert obs[1, 6] == pytest.approx(0.31 / 5, abs=1e-6)
+    assert obs[1, 7] == pytest.approx(0.5, abs=1e-6)
+
+
+def test_all_evaders_caught_ends_with_success(frozen_config):
+    evaders = far_evaders(frozen_config)
+    pursuers = np.array([[evaders[0, 0] + 0.1, 4.6], [evaders[1, 0] - 0.1, 4.6], [1.8, 2.0]])
+    env = single(frozen_config, pursuer_pos=pursuers, evader_pos=evaders)
+    result = env.step(np.full((1, 3), 0.5))
+    assert result.terminated[0] and not result.truncated[0] and env.done[0]
+    metrics = env.episode_metrics(0)
+    assert metrics["success"] and not metrics["collision"] and metrics["length"] == 1
+    np.testing.assert_allclose(result.reward[0], 20.0, atol=1e-4)
+
+
+def test_all_pursuers_disabled_ends_without_success(frozen_config):
+    pursuers = np.array([[1.5, 2.0], [1.6, 2.0], [1.55, 2.1]])
+    env = single(frozen_config, pursuer_pos=pursuers, evader_pos=far_evaders(frozen_config))
+    result = env.step(np.full((1, 3), 0.5))
+    assert result.terminated[0]
+    assert env.episode_metrics(0) == {
+        "success": False, "collision": True, "length": 1, "captures": 0,
+        "team_return": pytest.approx(-30.0, abs=1e-3),
+    }
+
+
+def test_truncation_at_horizon():
+    config = dataclasses.replace(PursuitConfig(), horizon=5)
+    env = BatchedPursuit(config, 3)
+    env.reset(seeds=[1, 2, 3])
+    flags = [env.step(np.full((3, 3), 0.5)).truncated.copy() for _ in range(5)]
+    assert not np.any(flags[:4]) and flags[4].all()
+    assert env.t.tolist() == [5, 5, 5] and not env.success.any()
+
+
+def test_nan_actions_raise_and_out_of_range_are_clipped(config):
+    env = BatchedPursuit(config, 2)
+    env.reset(seeds=[5, 5])
+    with pytest.raises(ValueError, match="NaN"):
+        env.step(np.array([[0.5, np.nan, 0.5], [0.5, 0.5, 0.5]]))
+    env.step(np.array([[7.0, -3.0, 0.5], [1.0, 0.0, 0.5]]))
+    np.testing.assert_array_equal(env.pursuer_pos[0], env.pursuer_pos[1])
+    np.testing.assert_array_equal(env.obs[0], env.obs[1])
+
+
+def test_approach_reward_is_the_distance_gained(config):
+    env = BatchedPursuit(config, 4)
+    env.reset(seeds=[11, 12, 13, 14])
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        before_p = env.pursuer_pos.copy()
+        before_e = env.evader_pos.copy()
+        alive = env.evader_alive.copy()
+        active = env.pursuer_active.copy()
+        captures = env.captures.copy()
+        result = env.step(rng.random((4, 3)))
+        d_prev = np.linalg.norm(before_e[:, None] - before_p[:, :, None], axis=-1)
+        d_now = np.linalg.norm(env.evader_pos[:, None] - env.pursuer_pos[:, :, None], axis=-1)
+        approach = ((d_prev - d_now) / 0.3 * alive[:, None]).sum(-1)
+        expected = approach + 10.0 * (env.captures - captures)[:, None] - 10.0 * result.disabled
+        np.testing.assert_allclose(result.reward, expected * active, atol=1e-9)
+
+
+def test_reset_options_validate(config):
+    env = BatchedPursuit(config, 1)
+    with pytest.raises(ValueError, match="inside the arena"):
+        env.reset(initial_state={0: {"evader_pos": np.array([[4.0, 1.0], [1.0, 1.0]])}})
+    with pytest.raises(ValueError, match="shape"):
+        env.reset(initial_state={0: {"pursuer_heading": np.zeros(2)}})
+    with pytest.raises(ValueError, match="unknown initial-state"):
+        env.reset(initial_state={0: {"pursuer_speed": 1.0}})
