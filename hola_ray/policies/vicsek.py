@@ -20,17 +20,22 @@ from hola_ray.policies.base import Policy
 
 @dataclass(frozen=True)
 class VicsekConfig:
-    """Parameters of the group-chasing pursuer."""
+    """Parameters of the group-chasing pursuer.
 
-    prediction_time: float = 1.0
+    Defaults were picked by a grid search (prediction time × obstacle range and gain ×
+    chaser range and gain, 48 points, 300 one-evader episodes on run seed 100, held out
+    from the Table II seeds): the best success rate, then fewest collisions.
+    """
+
+    prediction_time: float = 2.0
     """most seconds ahead the evader's position is predicted"""
     obstacle_range: float = 0.35
     """walls and obstacles nearer than this repel"""
-    obstacle_gain: float = 2.0
+    obstacle_gain: float = 4.0
     """strength of the obstacle repulsion at contact, relative to the unit chase term"""
-    chaser_range: float = 0.6
+    chaser_range: float = 0.9
     """teammates nearer than this repel"""
-    chaser_gain: float = 1.0
+    chaser_gain: float = 2.0
     """strength of the teammate repulsion at contact, relative to the chase term"""
 
 
