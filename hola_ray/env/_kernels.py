@@ -14,6 +14,7 @@ from numba import njit, prange
 
 from hola_ray.env import _rng
 from hola_ray.env.config import PursuitConfig
+from hola_ray.env.geometry import norm, wrap
 
 # ---- packed float parameters --------------------------------------------------------
 F_WIDTH = 0
@@ -100,12 +101,6 @@ def pack_params(config: PursuitConfig) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 # ---- geometry -------------------------------------------------------------------------
-@njit(cache=True, inline="always")
-def wrap(angle):
-    """Angle wrapped to [−π, π)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
-
-
 @njit(cache=True)
 def nearest_static(px, py, rects, width, height):
     """Nearest point (qx, qy) on the walls or any bar to (px, py), and its distance."""
@@ -119,7 +114,7 @@ def nearest_static(px, py, rects, width, height):
     for k in range(rects.shape[0]):
         cx = min(max(px, rects[k, 0]), rects[k, 2])
         cy = min(max(py, rects[k, 1]), rects[k, 3])
-        d = math.hypot(px - cx, py - cy)
+        d = norm(px - cx, py - cy)
         if d < best:
             qx, qy, best = cx, cy, d
     return qx, qy, best
@@ -155,7 +150,7 @@ def evader_repulsion(px, py, rects, width, height, gain, reach, offset):
     for k in range(rects.shape[0]):
         cx = min(max(px, rects[k, 0]), rects[k, 2])
         cy = min(max(py, rects[k, 1]), rects[k, 3])
-        d = math.hypot(px - cx, py - cy)
+        d = norm(px - cx, py - cy)
         gx, gy = _repulse(px, py, cx, cy, d, gain, reach, offset)
         fx += gx
         fy += gy
@@ -172,7 +167,7 @@ def _place(rng, b, out, n, region, separation):
             y = region[2] + _rng.uniform(rng, b) * (region[3] - region[2])
             ok = True
             for j in range(k):
-                if math.hypot(x - out[j, 0], y - out[j, 1]) < separation:
+                if norm(x - out[j, 0], y - out[j, 1]) < separation:
                     ok = False
                     break
             if ok:
@@ -242,7 +237,7 @@ def observe(b, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs):
             if ealive[b, e]:
                 dx = epos[b, e, 0] - px
                 dy = epos[b, e, 1] - py
-                obs[b, i, k] = math.hypot(dx, dy) / scale
+                obs[b, i, k] = norm(dx, dy) / scale
                 obs[b, i, k + 1] = wrap(math.atan2(dy, dx) - h) / math.pi
                 obs[b, i, k + 2] = wrap(ehead[b, e] - h) / math.pi
             else:
@@ -253,7 +248,7 @@ def observe(b, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs):
         qx, qy, d = nearest_static(px, py, rects, width, height)
         for j in range(n_p):
             if j != i and not pactive[b, j]:
-                dj = math.hypot(ppos[b, j, 0] - px, ppos[b, j, 1] - py)
+                dj = norm(ppos[b, j, 0] - px, ppos[b, j, 1] - py)
                 if dj < d:
                     qx, qy, d = ppos[b, j, 0], ppos[b, j, 1], dj
         obs[b, i, k] = d / scale
@@ -264,7 +259,7 @@ def observe(b, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs):
                 continue
             dx = ppos[b, j, 0] - px
             dy = ppos[b, j, 1] - py
-            d = math.hypot(dx, dy)
+            d = norm(dx, dy)
             if pactive[b, j] and d <= fp[F_PERCEPTION]:
                 obs[b, i, k] = d / scale
                 obs[b, i, k + 1] = wrap(math.atan2(dy, dx) - h) / math.pi
@@ -309,7 +304,7 @@ def evader_heading(
             continue
         ax = ex - ppos[b, i, 0]
         ay = ey - ppos[b, i, 1]
-        d = math.hypot(ax, ay)
+        d = norm(ax, ay)
         if d < sens and d > 0.0:
             flee_x += ax / (d * d)
             flee_y += ay / (d * d)
@@ -342,9 +337,9 @@ def evader_heading(
         esc_y = math.sin(wander_dir[b, e])
     else:
         wander_left[b, e] = 0
-        norm = math.hypot(flee_x, flee_y)
-        if n_flee > 0 and norm > 0.0:
-            esc_x, esc_y = flee_x / norm, flee_y / norm
+        flee_norm = norm(flee_x, flee_y)
+        if n_flee > 0 and flee_norm > 0.0:
+            esc_x, esc_y = flee_x / flee_norm, flee_y / flee_norm
         else:
             esc_x, esc_y = 0.0, 0.0
 
@@ -375,7 +370,7 @@ def evader_heading(
         a2y = ppos[b, i2, 1] - ey
         gx = a1x + a2x
         gy = a1y + a2y
-        gn = math.hypot(gx, gy)
+        gn = norm(gx, gy)
         reachable = False
         if gn > 0.0:
             gx /= gn
@@ -384,8 +379,8 @@ def evader_heading(
             p2 = gx * a2x + gy * a2y
             tau_e1 = abs(p1) / fp[F_V_E]
             tau_e2 = abs(p2) / fp[F_V_E]
-            tau_c1 = (math.hypot(gx * p1 - a1x, gy * p1 - a1y) - fp[F_CAPTURE]) / fp[F_V_P]
-            tau_c2 = (math.hypot(gx * p2 - a2x, gy * p2 - a2y) - fp[F_CAPTURE]) / fp[F_V_P]
+            tau_c1 = (norm(gx * p1 - a1x, gy * p1 - a1y) - fp[F_CAPTURE]) / fp[F_V_P]
+            tau_c2 = (norm(gx * p2 - a2x, gy * p2 - a2y) - fp[F_CAPTURE]) / fp[F_V_P]
             reachable = tau_e1 < tau_c1 and tau_e2 < tau_c2
         if not slip[b, e]:
             if reachable and d_obs < fp[F_E_SLIP_START] and rep_x * gx + rep_y * gy >= 0.0:
@@ -433,7 +428,7 @@ def step_episode(
     # distances before the move, for the approach term
     for i in range(n_p):
         for e in range(n_e):
-            dist_prev[b, i, e] = math.hypot(
+            dist_prev[b, i, e] = norm(
                 epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1]
             )
 
@@ -472,7 +467,7 @@ def step_episode(
             continue
         for i in range(n_p):
             if pactive[b, i]:
-                d = math.hypot(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
+                d = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
                 if d < fp[F_CAPTURE]:
                     caught += 1
                     break
@@ -484,7 +479,7 @@ def step_episode(
         r = 0.0
         for e in range(n_e):
             if ealive[b, e]:
-                d = math.hypot(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
+                d = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
                 r += (dist_prev[b, i, e] - d) / fp[F_APPROACH_SCALE]
         reward[b, i] = r + fp[F_CAPTURE_REWARD] * caught
 
@@ -494,7 +489,7 @@ def step_episode(
                 continue
             for i in range(n_p):
                 if pactive[b, i]:
-                    d = math.hypot(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
+                    d = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
                     if d < fp[F_CAPTURE]:
                         ealive[b, e] = False
                         break
@@ -512,7 +507,7 @@ def step_episode(
         for j in range(n_p):
             if j == i or hit:
                 continue
-            dj = math.hypot(ppos[b, j, 0] - px, ppos[b, j, 1] - py)
+            dj = norm(ppos[b, j, 0] - px, ppos[b, j, 1] - py)
             if pactive[b, j]:
                 hit = dj < fp[F_KAPPA]
             else:

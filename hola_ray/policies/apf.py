@@ -15,6 +15,7 @@ import numpy as np
 from numba import njit
 
 from hola_ray.env.config import PursuitConfig
+from hola_ray.env.geometry import norm
 from hola_ray.policies import _ego
 from hola_ray.policies.base import Policy
 
@@ -128,7 +129,7 @@ def _apf(
         if (ax + rx) * ax + (ay + ry) * ay < 0.0:
             # wall following along the obstacle tangent (own heading is +x)
             t1x, t1y = -ry, rx
-            if math.hypot(ix, iy) < 1.0:
+            if norm(ix, iy) < 1.0:
                 fx, fy = (t1x, t1y) if t1x >= -t1x else (-t1x, -t1y)
             else:
                 fx, fy = (t1x, t1y) if t1x * ix + t1y * iy > 0.0 else (-t1x, -t1y)

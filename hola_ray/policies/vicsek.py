@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit
 
 from hola_ray.env.config import PursuitConfig
+from hola_ray.env.geometry import norm
 from hola_ray.policies import _ego
 from hola_ray.policies.base import Policy
 
@@ -77,7 +78,7 @@ def _vicsek(
             tau = min(ed / (v_p + v_e), t_pred)
             cx = ex + tau * rvx
             cy = ey + tau * rvy
-            cn = math.hypot(cx, cy)
+            cn = norm(cx, cy)
             if cn > 0.0:
                 fx, fy = cx / cn, cy / cn
         qx, qy, d = _ego.point(obs, n, k_obst, scale)
