@@ -77,20 +77,28 @@ def main() -> None:
     mpe_rate = pettingzoo_steps_per_s(mpe, args.seconds)
     ours = pettingzoo_steps_per_s(PursuitEnv(config), args.seconds)
     print(f"MPE simple_tag_v3 (PettingZoo API)   {mpe_rate:>12,.0f} env steps/s")
-    print(f"PursuitEnv        (PettingZoo API)   {ours:>12,.0f} env steps/s   "
-          f"{ours / mpe_rate:6.1f}× MPE")
+    print(
+        f"PursuitEnv        (PettingZoo API)   {ours:>12,.0f} env steps/s   "
+        f"{ours / mpe_rate:6.1f}× MPE"
+    )
     batched = {}
     for batch in (1, 64, 1024, 4096):
         batched[batch] = batched_steps_per_s(config, batch, args.seconds)
-        print(f"batched core B={batch:<5} + Greedy       {batched[batch]:>12,.0f} env steps/s   "
-              f"{batched[batch] / mpe_rate:6.0f}× MPE")
-    print(json.dumps({
-        "pettingzoo_env_steps_per_s": round(ours, 1),
-        "mpe_simple_tag_env_steps_per_s": round(mpe_rate, 1),
-        "pettingzoo_over_mpe": round(ours / mpe_rate, 2),
-        "batched_env_steps_per_s": {str(b): round(v, 1) for b, v in batched.items()},
-        "batched_1024_over_mpe": round(batched[1024] / mpe_rate, 1),
-    }))
+        print(
+            f"batched core B={batch:<5} + Greedy       {batched[batch]:>12,.0f} env steps/s   "
+            f"{batched[batch] / mpe_rate:6.0f}× MPE"
+        )
+    print(
+        json.dumps(
+            {
+                "pettingzoo_env_steps_per_s": round(ours, 1),
+                "mpe_simple_tag_env_steps_per_s": round(mpe_rate, 1),
+                "pettingzoo_over_mpe": round(ours / mpe_rate, 2),
+                "batched_env_steps_per_s": {str(b): round(v, 1) for b, v in batched.items()},
+                "batched_1024_over_mpe": round(batched[1024] / mpe_rate, 1),
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

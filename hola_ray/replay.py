@@ -18,10 +18,15 @@ from hola_ray.policies.registry import make_policy, policy_names
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m hola_ray.replay", description=__doc__)
     parser.add_argument(
-        "--team", nargs="+", default=["vicsek"],
-        help=f"policy per pursuer slot (one name fills every slot); known: {', '.join(policy_names()[:3])}, apf-a-0..23",
+        "--team",
+        nargs="+",
+        default=["vicsek"],
+        help="policy per pursuer slot (one name fills every slot); known: "
+        f"{', '.join(policy_names()[:2])}, apf-a-0..apf-a-23",
     )
-    parser.add_argument("--config", type=Path, help="YAML with the pursuit config (or an env: section)")
+    parser.add_argument(
+        "--config", type=Path, help="YAML with the pursuit config (or an env: section)"
+    )
     parser.add_argument("--evaders", type=int, help="override the number of evaders")
     parser.add_argument("--seed", type=int, default=0, help="episode seed")
     parser.add_argument("--out", type=Path, default=Path("replays"), help="output folder")

@@ -178,8 +178,25 @@ def _place(rng, b, out, n, region, separation):
 
 @njit(cache=True)
 def reset_episode(
-    b, fp, spawn, rng, ppos, phead, pactive, epos, ehead, ealive,
-    wander_left, wander_dir, slip, slip_dir, t, done, collided, captures, ep_return,
+    b,
+    fp,
+    spawn,
+    rng,
+    ppos,
+    phead,
+    pactive,
+    epos,
+    ehead,
+    ealive,
+    wander_left,
+    wander_dir,
+    slip,
+    slip_dir,
+    t,
+    done,
+    collided,
+    captures,
+    ep_return,
 ):
     """Draw a fresh initial state for episode b from its own stream."""
     _place(rng, b, ppos[b], ppos.shape[1], spawn[0], fp[F_SPAWN_SEP])
@@ -204,16 +221,51 @@ def reset_episode(
 
 @njit(cache=True, parallel=True)
 def reset_masked(
-    mask, fp, spawn, rng, ppos, phead, pactive, epos, ehead, ealive,
-    wander_left, wander_dir, slip, slip_dir, t, done, collided, captures, ep_return,
-    rects, obs,
+    mask,
+    fp,
+    spawn,
+    rng,
+    ppos,
+    phead,
+    pactive,
+    epos,
+    ehead,
+    ealive,
+    wander_left,
+    wander_dir,
+    slip,
+    slip_dir,
+    t,
+    done,
+    collided,
+    captures,
+    ep_return,
+    rects,
+    obs,
 ):
     """Reset every episode b with mask[b] and write its first observation."""
     for b in prange(mask.shape[0]):
         if mask[b]:
             reset_episode(
-                b, fp, spawn, rng, ppos, phead, pactive, epos, ehead, ealive,
-                wander_left, wander_dir, slip, slip_dir, t, done, collided, captures, ep_return,
+                b,
+                fp,
+                spawn,
+                rng,
+                ppos,
+                phead,
+                pactive,
+                epos,
+                ehead,
+                ealive,
+                wander_left,
+                wander_dir,
+                slip,
+                slip_dir,
+                t,
+                done,
+                collided,
+                captures,
+                ep_return,
             )
             observe(b, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs)
 
@@ -276,7 +328,20 @@ def observe(b, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs):
 # ---- evader (SPEC §2) --------------------------------------------------------------------
 @njit(cache=True)
 def evader_heading(
-    b, e, fp, ip, rects, rng, ppos, pactive, epos, ehead, wander_left, wander_dir, slip, slip_dir,
+    b,
+    e,
+    fp,
+    ip,
+    rects,
+    rng,
+    ppos,
+    pactive,
+    epos,
+    ehead,
+    wander_left,
+    wander_dir,
+    slip,
+    slip_dir,
 ):
     """The DACOOP escaper's new heading for evader e of episode b, from the true state.
 
@@ -320,8 +385,14 @@ def evader_heading(
 
     _, _, d_obs = nearest_static(ex, ey, rects, fp[F_WIDTH], fp[F_HEIGHT])
     rep_x, rep_y = evader_repulsion(
-        ex, ey, rects, fp[F_WIDTH], fp[F_HEIGHT],
-        fp[F_E_REP_GAIN], fp[F_E_REP_RANGE], fp[F_E_REP_OFFSET],
+        ex,
+        ey,
+        rects,
+        fp[F_WIDTH],
+        fp[F_HEIGHT],
+        fp[F_E_REP_GAIN],
+        fp[F_E_REP_RANGE],
+        fp[F_E_REP_OFFSET],
     )
 
     panic = 0.0
@@ -409,9 +480,34 @@ def evader_heading(
 # ---- step -----------------------------------------------------------------------------------
 @njit(cache=True)
 def step_episode(
-    b, actions, fp, ip, rects, rng, ppos, phead, pactive, epos, ehead, ealive,
-    wander_left, wander_dir, slip, slip_dir, t, done, collided, captures, ep_return,
-    obs, reward, terminated, truncated, disabled, new_heading, dist_prev,
+    b,
+    actions,
+    fp,
+    ip,
+    rects,
+    rng,
+    ppos,
+    phead,
+    pactive,
+    epos,
+    ehead,
+    ealive,
+    wander_left,
+    wander_dir,
+    slip,
+    slip_dir,
+    t,
+    done,
+    collided,
+    captures,
+    ep_return,
+    obs,
+    reward,
+    terminated,
+    truncated,
+    disabled,
+    new_heading,
+    dist_prev,
 ):
     """Advance episode b by one step with pursuer actions [n_p] in [0, 1] (already clipped)."""
     n_p = ppos.shape[1]
@@ -428,16 +524,26 @@ def step_episode(
     # distances before the move, for the approach term
     for i in range(n_p):
         for e in range(n_e):
-            dist_prev[b, i, e] = norm(
-                epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1]
-            )
+            dist_prev[b, i, e] = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
 
     # evaders decide on the state before anyone moves (simultaneous moves)
     for e in range(n_e):
         if ealive[b, e]:
             new_heading[b, e] = evader_heading(
-                b, e, fp, ip, rects, rng, ppos, pactive, epos, ehead,
-                wander_left, wander_dir, slip, slip_dir,
+                b,
+                e,
+                fp,
+                ip,
+                rects,
+                rng,
+                ppos,
+                pactive,
+                epos,
+                ehead,
+                wander_left,
+                wander_dir,
+                slip,
+                slip_dir,
             )
 
     step_p = fp[F_V_P] * fp[F_DT]
@@ -542,16 +648,65 @@ def step_episode(
 
 @njit(cache=True, parallel=True)
 def step_all(
-    actions, fp, ip, rects, rng, ppos, phead, pactive, epos, ehead, ealive,
-    wander_left, wander_dir, slip, slip_dir, t, done, collided, captures, ep_return,
-    obs, reward, terminated, truncated, disabled, new_heading, dist_prev,
+    actions,
+    fp,
+    ip,
+    rects,
+    rng,
+    ppos,
+    phead,
+    pactive,
+    epos,
+    ehead,
+    ealive,
+    wander_left,
+    wander_dir,
+    slip,
+    slip_dir,
+    t,
+    done,
+    collided,
+    captures,
+    ep_return,
+    obs,
+    reward,
+    terminated,
+    truncated,
+    disabled,
+    new_heading,
+    dist_prev,
 ):
     """Advance every episode of the batch by one step, in parallel over episodes."""
     for b in prange(actions.shape[0]):
         step_episode(
-            b, actions, fp, ip, rects, rng, ppos, phead, pactive, epos, ehead, ealive,
-            wander_left, wander_dir, slip, slip_dir, t, done, collided, captures, ep_return,
-            obs, reward, terminated, truncated, disabled, new_heading, dist_prev,
+            b,
+            actions,
+            fp,
+            ip,
+            rects,
+            rng,
+            ppos,
+            phead,
+            pactive,
+            epos,
+            ehead,
+            ealive,
+            wander_left,
+            wander_dir,
+            slip,
+            slip_dir,
+            t,
+            done,
+            collided,
+            captures,
+            ep_return,
+            obs,
+            reward,
+            terminated,
+            truncated,
+            disabled,
+            new_heading,
+            dist_prev,
         )
 
 

@@ -87,7 +87,10 @@ class EvaderConfig:
             value = getattr(self, name)
             _require(math.isfinite(value) and value >= 0, f"evader.{name}", ">= 0", value)
         _require(
-            0 <= self.panic_threshold <= 1, "evader.panic_threshold", "in [0, 1]", self.panic_threshold
+            0 <= self.panic_threshold <= 1,
+            "evader.panic_threshold",
+            "in [0, 1]",
+            self.panic_threshold,
         )
         _require(self.wander_hold_min >= 1, "evader.wander_hold_min", ">= 1", self.wander_hold_min)
         _require(
@@ -241,7 +244,9 @@ class PursuitConfig:
         for name, count in (("pursuer_spawn", self.n_pursuers), ("evader_spawn", self.n_evaders)):
             x0, x1, y0, y1 = getattr(self, name)
             s = self.spawn_separation
-            capacity = (math.floor((x1 - x0) / s) + 1) * (math.floor((y1 - y0) / s) + 1) if s else 10**9
+            capacity = (
+                (math.floor((x1 - x0) / s) + 1) * (math.floor((y1 - y0) / s) + 1) if s else 10**9
+            )
             _require(
                 capacity >= 2 * count,
                 name,

@@ -92,12 +92,27 @@ class BatchedPursuit:
                 )
             self._rng[mask] = _rng.seed_state(seeds)
         _kernels.reset_masked(
-            mask, self._fp, self._spawn, self._rng,
-            self.pursuer_pos, self.pursuer_heading, self.pursuer_active,
-            self.evader_pos, self.evader_heading, self.evader_alive,
-            self._wander_left, self._wander_dir, self._slip, self._slip_dir,
-            self.t, self.done, self.collided, self.captures, self.episode_return,
-            self._rects, self.obs,
+            mask,
+            self._fp,
+            self._spawn,
+            self._rng,
+            self.pursuer_pos,
+            self.pursuer_heading,
+            self.pursuer_active,
+            self.evader_pos,
+            self.evader_heading,
+            self.evader_alive,
+            self._wander_left,
+            self._wander_dir,
+            self._slip,
+            self._slip_dir,
+            self.t,
+            self.done,
+            self.collided,
+            self.captures,
+            self.episode_return,
+            self._rects,
+            self.obs,
         )
         if initial_state:
             fixed = np.zeros(self.batch_size, dtype=bool)
@@ -144,9 +159,16 @@ class BatchedPursuit:
 
     def _observe(self, mask: np.ndarray) -> None:
         _kernels.observe_all(
-            mask, self._fp, self._rects,
-            self.pursuer_pos, self.pursuer_heading, self.pursuer_active,
-            self.evader_pos, self.evader_heading, self.evader_alive, self.obs,
+            mask,
+            self._fp,
+            self._rects,
+            self.pursuer_pos,
+            self.pursuer_heading,
+            self.pursuer_active,
+            self.evader_pos,
+            self.evader_heading,
+            self.evader_alive,
+            self.obs,
         )
 
     def _mask(self, mask: np.ndarray | None) -> np.ndarray:
@@ -169,13 +191,33 @@ class BatchedPursuit:
             raise ValueError(f"NaN action(s) at [episode, pursuer] {where}")
         actions = np.clip(actions, 0.0, 1.0)
         _kernels.step_all(
-            actions, self._fp, self._ip, self._rects, self._rng,
-            self.pursuer_pos, self.pursuer_heading, self.pursuer_active,
-            self.evader_pos, self.evader_heading, self.evader_alive,
-            self._wander_left, self._wander_dir, self._slip, self._slip_dir,
-            self.t, self.done, self.collided, self.captures, self.episode_return,
-            self.obs, self._reward, self._terminated, self._truncated, self._disabled,
-            self._new_heading, self._dist_prev,
+            actions,
+            self._fp,
+            self._ip,
+            self._rects,
+            self._rng,
+            self.pursuer_pos,
+            self.pursuer_heading,
+            self.pursuer_active,
+            self.evader_pos,
+            self.evader_heading,
+            self.evader_alive,
+            self._wander_left,
+            self._wander_dir,
+            self._slip,
+            self._slip_dir,
+            self.t,
+            self.done,
+            self.collided,
+            self.captures,
+            self.episode_return,
+            self.obs,
+            self._reward,
+            self._terminated,
+            self._truncated,
+            self._disabled,
+            self._new_heading,
+            self._dist_prev,
         )
         return StepResult(self.obs, self._reward, self._terminated, self._truncated, self._disabled)
 

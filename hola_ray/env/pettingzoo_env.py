@@ -1,4 +1,4 @@
-"""`PursuitEnv`: the pursuit arena as a PettingZoo `ParallelEnv`, one episode on the batched core."""
+"""`PursuitEnv`: the pursuit arena as a PettingZoo `ParallelEnv` over the batched core."""
 
 from __future__ import annotations
 
@@ -47,11 +47,11 @@ class PursuitEnv(ParallelEnv):
         self._obs_low, self._obs_high = self.core.layout.bounds(self.config)
 
     # ---- spaces ------------------------------------------------------------------------
-    @functools.lru_cache(maxsize=None)  # noqa: B019 - one space object per agent, as PettingZoo expects
+    @functools.cache  # noqa: B019 - one space object per agent, as PettingZoo expects
     def observation_space(self, agent: str) -> spaces.Box:
         return spaces.Box(self._obs_low, self._obs_high, dtype=np.float32)
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019
+    @functools.cache  # noqa: B019
     def action_space(self, agent: str) -> spaces.Box:
         return spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32)
 
@@ -116,7 +116,9 @@ class PursuitEnv(ParallelEnv):
         pursuers = np.column_stack(
             [core.pursuer_pos[0], core.pursuer_heading[0], core.pursuer_active[0]]
         )
-        evaders = np.column_stack([core.evader_pos[0], core.evader_heading[0], core.evader_alive[0]])
+        evaders = np.column_stack(
+            [core.evader_pos[0], core.evader_heading[0], core.evader_alive[0]]
+        )
         return np.concatenate([pursuers.ravel(), evaders.ravel()]).astype(np.float32)
 
     def render(self) -> np.ndarray | None:

@@ -90,10 +90,14 @@ def plot_trajectory(config: PursuitConfig, traj: Trajectory, path: str) -> None:
         ax.plot(*xy[0], "^", color=colour, ms=7)
     for step, _, where in traj.captures:
         ax.plot(*where, "*", color="gold", mec="black", ms=16, zorder=5)
-        ax.annotate(f"caught t={step}", where, xytext=(5, 5), textcoords="offset points", fontsize=7)
+        ax.annotate(
+            f"caught t={step}", where, xytext=(5, 5), textcoords="offset points", fontsize=7
+        )
     for step, _, where in traj.collisions:
         ax.plot(*where, "X", color="black", ms=12, zorder=5)
-        ax.annotate(f"crash t={step}", where, xytext=(5, -10), textcoords="offset points", fontsize=7)
+        ax.annotate(
+            f"crash t={step}", where, xytext=(5, -10), textcoords="offset points", fontsize=7
+        )
     m = traj.metrics
     ax.set_title(
         f"success={m['success']} collision={m['collision']} length={m['length']}", fontsize=9
@@ -128,12 +132,16 @@ def animate_trajectory(
     for t in steps:
         lo = max(0, t - tail)
         for i in range(n_p):
-            trails[i].set_data(traj.pursuer_pos[lo : t + 1, i, 0], traj.pursuer_pos[lo : t + 1, i, 1])
+            trails[i].set_data(
+                traj.pursuer_pos[lo : t + 1, i, 0], traj.pursuer_pos[lo : t + 1, i, 1]
+            )
             x, y = traj.pursuer_pos[t, i]
             pursuers[i].set_data([x], [y])
             pursuers[i].set_marker("o" if traj.pursuer_active[t, i] else "X")
         for e in range(n_e):
-            trails[n_p + e].set_data(traj.evader_pos[lo : t + 1, e, 0], traj.evader_pos[lo : t + 1, e, 1])
+            trails[n_p + e].set_data(
+                traj.evader_pos[lo : t + 1, e, 0], traj.evader_pos[lo : t + 1, e, 1]
+            )
             x, y = traj.evader_pos[t, e]
             evaders[e].set_data([x], [y])
             evaders[e].set_visible(bool(traj.evader_alive[t, e]))
@@ -145,7 +153,11 @@ def animate_trajectory(
         images.append(Image.fromarray(_canvas_rgb(fig)))
     plt.close(fig)
     images[0].save(
-        path, save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0,
+        path,
+        save_all=True,
+        append_images=images[1:],
+        duration=int(1000 / fps),
+        loop=0,
         optimize=False,
     )
     return len(images)

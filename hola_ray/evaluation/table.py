@@ -53,9 +53,16 @@ def table_rows(
         col, col_se = mean_and_se(collision)
         rows.append(
             {
-                "agent": label, "sr": sr, "sr_se": sr_se, "ael": ael, "ael_se": ael_se,
-                "collision": col, "collision_se": col_se,
-                "paper_sr": paper_sr, "paper_ael": paper_ael, "episodes": float(success.size),
+                "agent": label,
+                "sr": sr,
+                "sr_se": sr_se,
+                "ael": ael,
+                "ael_se": ael_se,
+                "collision": col,
+                "collision_se": col_se,
+                "paper_sr": paper_sr,
+                "paper_ael": paper_ael,
+                "episodes": float(success.size),
             }
         )
     return rows
@@ -81,7 +88,9 @@ def format_table(rows: list[dict[str, float | str]]) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m hola_ray.evaluation.table", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m hola_ray.evaluation.table", description=__doc__
+    )
     parser.add_argument("--episodes", type=int, default=50, help="episodes per seed")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="run seeds")
     parser.add_argument("--agents", nargs="+", default=list(AVAILABLE), help="registry names")

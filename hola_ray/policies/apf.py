@@ -8,7 +8,6 @@ millimetre units to metres (λ: 30 mm → 0.03 m; η: 1.5e8 mm³ → 0.15 m³).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,8 +59,12 @@ class APFA(Policy):
         obs = self._check(obs)
         n = obs.shape[0]
         return apf_actions(
-            self.config, self.params, obs,
-            np.full(n, self.lam), np.full(n, self.eta), np.full(n, -1, dtype=np.int64),
+            self.config,
+            self.params,
+            obs,
+            np.full(n, self.lam),
+            np.full(n, self.eta),
+            np.full(n, -1, dtype=np.int64),
         )
 
 
@@ -78,16 +81,39 @@ def apf_actions(
 
     lay = ObsLayout.from_config(config)
     return _apf(
-        obs, lam, eta, target, lay.n_evaders, lay.obstacle, lay.teammates, lay.n_pursuers - 1,
-        config.obs_distance_scale, config.unobserved_distance, config.max_turn,
-        params.influence_range, params.repulsion_offset, params.pair_offset,
+        obs,
+        lam,
+        eta,
+        target,
+        lay.n_evaders,
+        lay.obstacle,
+        lay.teammates,
+        lay.n_pursuers - 1,
+        config.obs_distance_scale,
+        config.unobserved_distance,
+        config.max_turn,
+        params.influence_range,
+        params.repulsion_offset,
+        params.pair_offset,
     )
 
 
 @njit(cache=True)
 def _apf(
-    obs, lam, eta, target, n_e, k_obst, k_mates, n_mates, scale, far, max_turn,
-    reach, offset, pair_offset,
+    obs,
+    lam,
+    eta,
+    target,
+    n_e,
+    k_obst,
+    k_mates,
+    n_mates,
+    scale,
+    far,
+    max_turn,
+    reach,
+    offset,
+    pair_offset,
 ):
     out = np.empty(obs.shape[0])
     for n in range(obs.shape[0]):

@@ -37,9 +37,16 @@ class Greedy(Policy):
         obs = self._check(obs)
         lay = self.layout
         return _greedy(
-            obs, lay.n_evaders, lay.obstacle, lay.teammates, lay.n_pursuers - 1,
-            self.config.obs_distance_scale, self.config.unobserved_distance,
-            self.config.max_turn, self.params.avoid_distance, self.params.avoid_turn,
+            obs,
+            lay.n_evaders,
+            lay.obstacle,
+            lay.teammates,
+            lay.n_pursuers - 1,
+            self.config.obs_distance_scale,
+            self.config.unobserved_distance,
+            self.config.max_turn,
+            self.params.avoid_distance,
+            self.params.avoid_turn,
         )
 
 

@@ -53,17 +53,41 @@ class Vicsek(Policy):
         obs = self._check(obs)
         lay, cfg, p = self.layout, self.config, self.params
         return _vicsek(
-            obs, lay.n_evaders, lay.obstacle, lay.teammates, lay.n_pursuers - 1,
-            cfg.obs_distance_scale, cfg.unobserved_distance, cfg.max_turn,
-            cfg.pursuer_speed, cfg.evader_speed, p.prediction_time,
-            p.obstacle_range, p.obstacle_gain, p.chaser_range, p.chaser_gain,
+            obs,
+            lay.n_evaders,
+            lay.obstacle,
+            lay.teammates,
+            lay.n_pursuers - 1,
+            cfg.obs_distance_scale,
+            cfg.unobserved_distance,
+            cfg.max_turn,
+            cfg.pursuer_speed,
+            cfg.evader_speed,
+            p.prediction_time,
+            p.obstacle_range,
+            p.obstacle_gain,
+            p.chaser_range,
+            p.chaser_gain,
         )
 
 
 @njit(cache=True)
 def _vicsek(
-    obs, n_e, k_obst, k_mates, n_mates, scale, far, max_turn, v_p, v_e, t_pred,
-    obst_range, obst_gain, chaser_range, chaser_gain,
+    obs,
+    n_e,
+    k_obst,
+    k_mates,
+    n_mates,
+    scale,
+    far,
+    max_turn,
+    v_p,
+    v_e,
+    t_pred,
+    obst_range,
+    obst_gain,
+    chaser_range,
+    chaser_gain,
 ):
     out = np.empty(obs.shape[0])
     for n in range(obs.shape[0]):

@@ -21,7 +21,15 @@ def _run(config, batch, steps, seed=0):
         alive = env.evader_alive.copy()
         running = ~env.done
         env.step(policy.act(env.obs.reshape(-1, config.obs_dim)).reshape(batch, -1))
-        history.append((pos, heading, alive & running[:, None], env.evader_pos.copy(), env.evader_heading.copy()))
+        history.append(
+            (
+                pos,
+                heading,
+                alive & running[:, None],
+                env.evader_pos.copy(),
+                env.evader_heading.copy(),
+            )
+        )
     return env, history
 
 
@@ -39,9 +47,8 @@ def test_turns_bounded_speed_constant_and_inside_arena():
         assert np.all((new_pos[..., 1] > 0) & (new_pos[..., 1] < config.arena_height))
     # no evader crosses a bar: bars are 0.1 thick, steps 0.06 long, min clearance 0.03
     for cx, cy, w, h in config.obstacles:
-        inside = (
-            (np.abs(env.evader_pos[..., 0] - cx) < w / 2)
-            & (np.abs(env.evader_pos[..., 1] - cy) < h / 2)
+        inside = (np.abs(env.evader_pos[..., 0] - cx) < w / 2) & (
+            np.abs(env.evader_pos[..., 1] - cy) < h / 2
         )
         assert not inside.any()
 
@@ -52,11 +59,13 @@ def test_evader_flees_a_close_pursuer():
     # evader in open space heading −y, a pursuer 0.5 below it: panic → it turns and runs up
     env.reset(
         seeds=[0],
-        initial_state={0: {
-            "evader_pos": np.array([[0.6, 2.3]]),
-            "evader_heading": np.array([-math.pi / 2]),
-            "pursuer_pos": np.array([[0.6, 1.8], [3.3, 0.3], [3.3, 4.7]]),
-        }},
+        initial_state={
+            0: {
+                "evader_pos": np.array([[0.6, 2.3]]),
+                "evader_heading": np.array([-math.pi / 2]),
+                "pursuer_pos": np.array([[0.6, 1.8], [3.3, 0.3], [3.3, 4.7]]),
+            }
+        },
     )
     gaps = []
     for _ in range(15):

@@ -84,9 +84,7 @@ def _drive(k: int, seeds: list[int], actions_for) -> None:
                 assert not env.agents
                 continue
             live = list(env.agents)
-            obs, rew, term, trunc, _ = env.step(
-                {a: actions[b, env._index[a]] for a in live}
-            )
+            obs, rew, term, trunc, _ = env.step({a: actions[b, env._index[a]] for a in live})
             for agent in live:
                 i = env._index[agent]
                 assert rew[agent] == result.reward[b, i], (t, b, agent)

@@ -134,7 +134,10 @@ def test_all_pursuers_disabled_ends_without_success(frozen_config):
     result = env.step(np.full((1, 3), 0.5))
     assert result.terminated[0]
     assert env.episode_metrics(0) == {
-        "success": False, "collision": True, "length": 1, "captures": 0,
+        "success": False,
+        "collision": True,
+        "length": 1,
+        "captures": 0,
         "team_return": pytest.approx(-30.0, abs=1e-3),
     }
 

@@ -3,7 +3,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hola_ray.env import PursuitConfig
 from hola_ray.evaluation import mean_and_se, rollout
 from hola_ray.evaluation.table import table_rows
 from hola_ray.policies import Greedy, Vicsek
