@@ -102,7 +102,8 @@ def plot_trajectory(config: PursuitConfig, traj: Trajectory, path: str) -> None:
     ax.set_title(
         f"success={m['success']} collision={m['collision']} length={m['length']}", fontsize=9
     )
-    ax.legend(loc="upper left", fontsize=6, framealpha=0.7)
+    fig.subplots_adjust(bottom=0.1)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, fontsize=6, frameon=False)
     fig.savefig(path)
     plt.close(fig)
 
