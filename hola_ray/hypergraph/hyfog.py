@@ -63,7 +63,8 @@ class HyFoG:
             raise HyFoGError(f"node {node!r} is already in the HyFoG")
         if len(self._order) >= self.max_size:
             raise HyFoGError(
-                f"the HyFoG is full (max_size={self.max_size}); remove a node before adding {node!r}"
+                f"the HyFoG is full (max_size={self.max_size}); "
+                f"remove a node before adding {node!r}"
             )
         self._order[node] = self._next
         self._next += 1
@@ -116,6 +117,10 @@ class HyFoG:
         """Every hyperedge, node sets in insertion order, sorted by insertion order."""
         out = [Hyperedge(self.sorted_nodes(k), w, n) for k, (w, n) in self._edges.items()]
         return sorted(out, key=lambda e: [self._order[v] for v in e.nodes])
+
+    def weights(self) -> Iterator[tuple[frozenset, float]]:
+        """(node set, weight) of every hyperedge, unsorted: the fast path for the math."""
+        return ((k, w) for k, (w, _) in self._edges.items())
 
     def incident(self, node: NodeId) -> Iterator[Hyperedge]:
         """Hyperedges that hold `node`."""

@@ -37,9 +37,9 @@ def myerson_value(
 
 def _closed(g: HyFoG) -> dict[NodeId, float]:
     value = dict.fromkeys(g.nodes, 0.0)
-    for edge in g.edges:
-        share = edge.weight / g.l
-        for node in edge.nodes:
+    for nodes, weight in g.weights():
+        share = weight / g.l
+        for node in nodes:
             value[node] += share
     return value
 
@@ -49,8 +49,8 @@ def coalition_values(g: HyFoG) -> np.ndarray:
     n = len(g)
     index = {v: k for k, v in enumerate(g.nodes)}
     v = np.zeros(1 << n)
-    for edge in g.edges:
-        v[sum(1 << index[node] for node in edge.nodes)] += edge.weight
+    for nodes, weight in g.weights():
+        v[sum(1 << index[node] for node in nodes)] += weight
     for bit in range(n):  # sum over subsets (zeta transform)
         step = 1 << bit
         v = v.reshape(-1, 2 * step)

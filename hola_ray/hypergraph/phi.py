@@ -26,10 +26,10 @@ def node_values(g: HyFoG, kind: str = "myerson") -> dict[NodeId, float | None]:
     """x_i per node (None for a node with no hyperedge)."""
     degree = dict.fromkeys(g.nodes, 0)
     total = dict.fromkeys(g.nodes, 0.0)
-    for edge in g.edges:
-        for node in edge.nodes:
+    for nodes, weight in g.weights():
+        for node in nodes:
             degree[node] += 1
-            total[node] += edge.weight
+            total[node] += weight
     if kind == "myerson":
         mv = myerson_value(g, "closed")
         return {v: (mv[v] if degree[v] else None) for v in g.nodes}
