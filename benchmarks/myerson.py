@@ -62,18 +62,24 @@ def main() -> None:
     g1000 = sparse_game(1000, 3, 10_000, seed=2)
     closed_ms_big = best_ms(lambda: myerson_value(g1000, "closed"), 5)
 
-    print(f"|V|=8, l=3, 56 edges: brute force {exact_ms:9.2f} ms   closed {closed_ms_8:7.3f} ms   "
-          f"ratio {exact_ms / closed_ms_8:,.0f}×   max |diff| {max_diff:.1e}")
+    print(
+        f"|V|=8, l=3, 56 edges: brute force {exact_ms:9.2f} ms   closed {closed_ms_8:7.3f} ms   "
+        f"ratio {exact_ms / closed_ms_8:,.0f}×   max |diff| {max_diff:.1e}"
+    )
     print(f"|V|=10, l=3, 120 edges: closed {closed_ms_10:.3f} ms")
     print(f"|V|=1000, l=3, 10,000 edges: closed {closed_ms_big:.2f} ms")
-    print(json.dumps({
-        "exact_ms_v8": round(exact_ms, 3),
-        "closed_ms_v8": round(closed_ms_8, 4),
-        "exact_over_closed_ratio_v8": round(exact_ms / closed_ms_8, 1),
-        "max_abs_diff_v8": max_diff,
-        "closed_ms_v10": round(closed_ms_10, 4),
-        "closed_ms_10000_edges": round(closed_ms_big, 3),
-    }))
+    print(
+        json.dumps(
+            {
+                "exact_ms_v8": round(exact_ms, 3),
+                "closed_ms_v8": round(closed_ms_8, 4),
+                "exact_over_closed_ratio_v8": round(exact_ms / closed_ms_8, 1),
+                "max_abs_diff_v8": max_diff,
+                "closed_ms_v10": round(closed_ms_10, 4),
+                "closed_ms_10000_edges": round(closed_ms_big, 3),
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -191,3 +191,18 @@ def test_phi_kinds_differ_when_edge_counts_differ():
     assert mv["b"] > mv["c"] and mr["b"] < mr["c"]
     with pytest.raises(ValueError, match="kind"):
         phi(g, "shapley")
+
+
+def test_draw_from_a_run_directory(tmp_path, capsys):
+    from hola_ray.hypergraph import draw
+
+    (tmp_path / "gen_001").mkdir()
+    (tmp_path / "gen_001" / "hyfog.json").write_text(fig3().to_json())
+    draw.main([str(tmp_path), "--out", str(tmp_path / "g.png")])
+    assert (tmp_path / "g.png").stat().st_size > 10_000
+    assert "wrote" in capsys.readouterr().out
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileNotFoundError, match="no"):
+        draw.find_hyfog(tmp_path / "empty")
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        draw.find_hyfog(tmp_path / "missing")
