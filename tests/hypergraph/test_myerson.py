@@ -116,3 +116,26 @@ def test_unknown_method_and_too_large_exact():
     with pytest.raises(ValueError, match="exact enumeration"):
         myerson_value(g, "exact")
     assert np.isclose(sum(myerson_value(g).values()), 0.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sampled_from([2, 3, 4]), st.integers(4, 7), st.data())
+def test_symmetric_players_get_equal_values(l, n, data):  # noqa: E741
+    # nodes 0 and 1 are interchangeable: w(T) = w(swap(T)) for every hyperedge T
+    g = HyFoG(l=l, max_size=10)
+    for v in range(n):
+        g.add_node(v)
+    swap = {0: 1, 1: 0}
+    drawn: dict[frozenset, float | None] = {}
+    for nodes in itertools.combinations(range(n), l):
+        key = frozenset(nodes)
+        mirror = frozenset(swap.get(v, v) for v in nodes)
+        if mirror in drawn:
+            weight = drawn[mirror]
+        else:
+            weight = data.draw(st.one_of(st.none(), st.floats(-100, 100, allow_nan=False)))
+        drawn[key] = weight
+        if weight is not None:
+            g.set_weight(nodes, weight)
+    values = myerson_value(g, "exact")
+    assert values[0] == pytest.approx(values[1], abs=1e-9)
