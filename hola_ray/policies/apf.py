@@ -15,6 +15,7 @@ from numba import njit
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.geometry import norm
+from hola_ray.env.layout import ObsLayout
 from hola_ray.policies import _ego
 from hola_ray.policies.base import Policy
 
@@ -77,8 +78,6 @@ def apf_actions(
     target: np.ndarray,
 ) -> np.ndarray:
     """APF-A actions for rows with their own λ [N], η [N] and target evader [N] (−1: nearest)."""
-    from hola_ray.env.layout import ObsLayout
-
     lay = ObsLayout.from_config(config)
     return _apf(
         obs,
@@ -156,7 +155,8 @@ def _apf(
             # wall following along the obstacle tangent (own heading is +x)
             t1x, t1y = -ry, rx
             if norm(ix, iy) < 1.0:
-                fx, fy = (t1x, t1y) if t1x >= -t1x else (-t1x, -t1y)
+                # the tangent nearer the own heading (+x)
+                fx, fy = (t1x, t1y) if t1x >= 0.0 else (-t1x, -t1y)
             else:
                 fx, fy = (t1x, t1y) if t1x * ix + t1y * iy > 0.0 else (-t1x, -t1y)
         out[n] = _ego.to_action(fx, fy, max_turn)
