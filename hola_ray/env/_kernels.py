@@ -1,13 +1,16 @@
 """Compiled per-episode physics of the pursuit arena: one loop over the batch, numba-jitted.
 
-Everything here is plain arrays in, arrays out. `core.BatchedPursuit` owns the arrays and
-is the only caller. The parameter vector `fp` is indexed by the `F_*` constants below and
-filled by `pack_params`; obstacles arrive as `rects` [K, 4] = (x_min, y_min, x_max, y_max).
+Everything here is plain arrays in, arrays out, grouped in three named tuples: `Params`
+(constants), `Arena` (per-episode state) and `StepOut` (per-step outputs and scratch).
+`core.BatchedPursuit` owns the arrays and is the only caller. The parameter vector `fp` is
+indexed by the `F_*` constants below and filled by `pack_params`; obstacles arrive as
+`rects` [K, 4] = (x_min, y_min, x_max, y_max).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -58,8 +61,50 @@ _E = math.e
 _REP_MIN = 0.005  # floor of (d − offset) in the repulsion, so a grazing evader stays finite
 
 
-def pack_params(config: PursuitConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(fp, ip, rects, spawn) for the kernels; spawn is [2, 4] rows of (x0, x1, y0, y1)."""
+class Params(NamedTuple):
+    """Constants of the scenario, packed for the kernels."""
+
+    fp: np.ndarray  # [N_FLOAT_PARAMS] float64, indexed by F_*
+    ip: np.ndarray  # [N_INT_PARAMS] int64, indexed by I_*
+    rects: np.ndarray  # [K, 4] bars as (x_min, y_min, x_max, y_max)
+    spawn: np.ndarray  # [2, 4] pursuer then evader spawn region (x0, x1, y0, y1)
+
+
+class Arena(NamedTuple):
+    """Per-episode state of a batch of B episodes (n_p pursuers, n_e evaders)."""
+
+    ppos: np.ndarray  # [B, n_p, 2] pursuer positions
+    phead: np.ndarray  # [B, n_p] pursuer headings
+    pactive: np.ndarray  # [B, n_p] bool, not disabled
+    epos: np.ndarray  # [B, n_e, 2] evader positions
+    ehead: np.ndarray  # [B, n_e] evader headings
+    ealive: np.ndarray  # [B, n_e] bool, not captured
+    wander_left: np.ndarray  # [B, n_e] int64, steps the wander heading is still held
+    wander_dir: np.ndarray  # [B, n_e] the wander heading
+    slip: np.ndarray  # [B, n_e] bool, slipping between two pursuers
+    slip_dir: np.ndarray  # [B, n_e, 2] direction of the slip when it started
+    t: np.ndarray  # [B] int64 steps taken
+    done: np.ndarray  # [B] bool, episode over
+    collided: np.ndarray  # [B] bool, a collision happened
+    captures: np.ndarray  # [B] int64 evaders captured
+    ep_return: np.ndarray  # [B, n_p] summed rewards
+    rng: np.ndarray  # [B] uint64 SplitMix64 stream states
+
+
+class StepOut(NamedTuple):
+    """What a step writes, plus scratch space."""
+
+    obs: np.ndarray  # [B, n_p, obs_dim] float32
+    reward: np.ndarray  # [B, n_p]
+    terminated: np.ndarray  # [B] bool
+    truncated: np.ndarray  # [B] bool
+    disabled: np.ndarray  # [B, n_p] bool, collided this step
+    new_heading: np.ndarray  # [B, n_e] scratch: evader decisions
+    dist_prev: np.ndarray  # [B, n_p, n_e] scratch: distances before the move
+
+
+def pack_params(config: PursuitConfig) -> Params:
+    """The scenario's constants in kernel form."""
     ev = config.evader
     fp = np.zeros(N_FLOAT_PARAMS, dtype=np.float64)
     fp[F_WIDTH] = config.arena_width
@@ -97,7 +142,7 @@ def pack_params(config: PursuitConfig) -> tuple[np.ndarray, np.ndarray, np.ndarr
         dtype=np.float64,
     ).reshape(-1, 4)
     spawn = np.array([config.pursuer_spawn, config.evader_spawn], dtype=np.float64)
-    return fp, ip, rects, spawn
+    return Params(fp, ip, rects, spawn)
 
 
 # ---- geometry -------------------------------------------------------------------------
@@ -177,28 +222,27 @@ def _place(rng, b, out, n, region, separation):
 
 
 @njit(cache=True)
-def reset_episode(
-    b,
-    fp,
-    spawn,
-    rng,
-    ppos,
-    phead,
-    pactive,
-    epos,
-    ehead,
-    ealive,
-    wander_left,
-    wander_dir,
-    slip,
-    slip_dir,
-    t,
-    done,
-    collided,
-    captures,
-    ep_return,
-):
+def reset_episode(b, p, s):
     """Draw a fresh initial state for episode b from its own stream."""
+    fp, ip, rects, spawn = p
+    (
+        ppos,
+        phead,
+        pactive,
+        epos,
+        ehead,
+        ealive,
+        wander_left,
+        wander_dir,
+        slip,
+        slip_dir,
+        t,
+        done,
+        collided,
+        captures,
+        ep_return,
+        rng,
+    ) = s
     _place(rng, b, ppos[b], ppos.shape[1], spawn[0], fp[F_SPAWN_SEP])
     _place(rng, b, epos[b], epos.shape[1], spawn[1], fp[F_SPAWN_SEP])
     for i in range(ppos.shape[1]):
@@ -220,60 +264,37 @@ def reset_episode(
 
 
 @njit(cache=True, parallel=True)
-def reset_masked(
-    mask,
-    fp,
-    spawn,
-    rng,
-    ppos,
-    phead,
-    pactive,
-    epos,
-    ehead,
-    ealive,
-    wander_left,
-    wander_dir,
-    slip,
-    slip_dir,
-    t,
-    done,
-    collided,
-    captures,
-    ep_return,
-    rects,
-    obs,
-):
+def reset_masked(mask, p, s, obs):
     """Reset every episode b with mask[b] and write its first observation."""
     for b in prange(mask.shape[0]):
         if mask[b]:
-            reset_episode(
-                b,
-                fp,
-                spawn,
-                rng,
-                ppos,
-                phead,
-                pactive,
-                epos,
-                ehead,
-                ealive,
-                wander_left,
-                wander_dir,
-                slip,
-                slip_dir,
-                t,
-                done,
-                collided,
-                captures,
-                ep_return,
-            )
-            observe(b, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs)
+            reset_episode(b, p, s)
+            observe(b, p, s, obs)
 
 
 # ---- observation --------------------------------------------------------------------------
 @njit(cache=True)
-def observe(b, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs):
+def observe(b, p, s, obs):
     """Write every pursuer's egocentric observation of episode b into obs[b] (SPEC §1)."""
+    fp, ip, rects, spawn = p
+    (
+        ppos,
+        phead,
+        pactive,
+        epos,
+        ehead,
+        ealive,
+        wander_left,
+        wander_dir,
+        slip,
+        slip_dir,
+        t,
+        done,
+        collided,
+        captures,
+        ep_return,
+        rng,
+    ) = s
     n_p = ppos.shape[1]
     n_e = epos.shape[1]
     scale = fp[F_OBS_SCALE]
@@ -327,22 +348,7 @@ def observe(b, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs):
 
 # ---- evader (SPEC §2) --------------------------------------------------------------------
 @njit(cache=True)
-def evader_heading(
-    b,
-    e,
-    fp,
-    ip,
-    rects,
-    rng,
-    ppos,
-    pactive,
-    epos,
-    ehead,
-    wander_left,
-    wander_dir,
-    slip,
-    slip_dir,
-):
+def evader_heading(b, e, p, s):
     """The DACOOP escaper's new heading for evader e of episode b, from the true state.
 
     Wander when calm and clear of obstacles; otherwise flee from the pursuers within the
@@ -350,6 +356,25 @@ def evader_heading(
     oppose; slip between two close pursuers when the gap is reachable first. The heading
     change is bounded by the evader's max turn.
     """
+    fp, ip, rects, spawn = p
+    (
+        ppos,
+        phead,
+        pactive,
+        epos,
+        ehead,
+        ealive,
+        wander_left,
+        wander_dir,
+        slip,
+        slip_dir,
+        t,
+        done,
+        collided,
+        captures,
+        ep_return,
+        rng,
+    ) = s
     n_p = ppos.shape[1]
     ex = epos[b, e, 0]
     ey = epos[b, e, 1]
@@ -479,37 +504,28 @@ def evader_heading(
 
 # ---- step -----------------------------------------------------------------------------------
 @njit(cache=True)
-def step_episode(
-    b,
-    actions,
-    fp,
-    ip,
-    rects,
-    rng,
-    ppos,
-    phead,
-    pactive,
-    epos,
-    ehead,
-    ealive,
-    wander_left,
-    wander_dir,
-    slip,
-    slip_dir,
-    t,
-    done,
-    collided,
-    captures,
-    ep_return,
-    obs,
-    reward,
-    terminated,
-    truncated,
-    disabled,
-    new_heading,
-    dist_prev,
-):
+def step_episode(b, actions, p, s, out):
     """Advance episode b by one step with pursuer actions [n_p] in [0, 1] (already clipped)."""
+    fp, ip, rects, spawn = p
+    (
+        ppos,
+        phead,
+        pactive,
+        epos,
+        ehead,
+        ealive,
+        wander_left,
+        wander_dir,
+        slip,
+        slip_dir,
+        t,
+        done,
+        collided,
+        captures,
+        ep_return,
+        rng,
+    ) = s
+    obs, reward, terminated, truncated, disabled, new_heading, dist_prev = out
     n_p = ppos.shape[1]
     n_e = epos.shape[1]
     for i in range(n_p):
@@ -529,22 +545,7 @@ def step_episode(
     # evaders decide on the state before anyone moves (simultaneous moves)
     for e in range(n_e):
         if ealive[b, e]:
-            new_heading[b, e] = evader_heading(
-                b,
-                e,
-                fp,
-                ip,
-                rects,
-                rng,
-                ppos,
-                pactive,
-                epos,
-                ehead,
-                wander_left,
-                wander_dir,
-                slip,
-                slip_dir,
-            )
+            new_heading[b, e] = evader_heading(b, e, p, s)
 
     step_p = fp[F_V_P] * fp[F_DT]
     for i in range(n_p):
@@ -643,76 +644,19 @@ def step_episode(
         truncated[b] = True
         done[b] = True
 
-    observe(b, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs)
+    observe(b, p, s, obs)
 
 
 @njit(cache=True, parallel=True)
-def step_all(
-    actions,
-    fp,
-    ip,
-    rects,
-    rng,
-    ppos,
-    phead,
-    pactive,
-    epos,
-    ehead,
-    ealive,
-    wander_left,
-    wander_dir,
-    slip,
-    slip_dir,
-    t,
-    done,
-    collided,
-    captures,
-    ep_return,
-    obs,
-    reward,
-    terminated,
-    truncated,
-    disabled,
-    new_heading,
-    dist_prev,
-):
+def step_all(actions, p, s, out):
     """Advance every episode of the batch by one step, in parallel over episodes."""
     for b in prange(actions.shape[0]):
-        step_episode(
-            b,
-            actions,
-            fp,
-            ip,
-            rects,
-            rng,
-            ppos,
-            phead,
-            pactive,
-            epos,
-            ehead,
-            ealive,
-            wander_left,
-            wander_dir,
-            slip,
-            slip_dir,
-            t,
-            done,
-            collided,
-            captures,
-            ep_return,
-            obs,
-            reward,
-            terminated,
-            truncated,
-            disabled,
-            new_heading,
-            dist_prev,
-        )
+        step_episode(b, actions, p, s, out)
 
 
 @njit(cache=True, parallel=True)
-def observe_all(mask, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs):
+def observe_all(mask, p, s, obs):
     """Recompute the observation of every episode b with mask[b]."""
     for b in prange(mask.shape[0]):
         if mask[b]:
-            observe(b, fp, rects, ppos, phead, pactive, epos, ehead, ealive, obs)
+            observe(b, p, s, obs)

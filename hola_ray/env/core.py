@@ -41,32 +41,48 @@ class BatchedPursuit:
         self.layout = ObsLayout.from_config(config)
         self.batch_size = B = int(batch_size)
         n_p, n_e = config.n_pursuers, config.n_evaders
-        self._fp, self._ip, self._rects, self._spawn = _kernels.pack_params(config)
-
-        self.pursuer_pos = np.zeros((B, n_p, 2))  # metres
-        self.pursuer_heading = np.zeros((B, n_p))  # radians
-        self.pursuer_active = np.zeros((B, n_p), dtype=bool)
-        self.evader_pos = np.zeros((B, n_e, 2))
-        self.evader_heading = np.zeros((B, n_e))
-        self.evader_alive = np.zeros((B, n_e), dtype=bool)
-        self._wander_left = np.zeros((B, n_e), dtype=np.int64)
-        self._wander_dir = np.zeros((B, n_e))
-        self._slip = np.zeros((B, n_e), dtype=bool)
-        self._slip_dir = np.zeros((B, n_e, 2))
-        self.t = np.zeros(B, dtype=np.int64)  # steps taken in the episode
-        self.done = np.ones(B, dtype=bool)  # episodes that have ended (or never started)
-        self.collided = np.zeros(B, dtype=bool)  # a collision happened in the episode
-        self.captures = np.zeros(B, dtype=np.int64)  # evaders captured in the episode
-        self.episode_return = np.zeros((B, n_p))  # each pursuer's summed reward so far
-        self._rng = _rng.seed_state(np.arange(B))
-
-        self.obs = np.zeros((B, n_p, self.layout.dim), dtype=np.float32)
-        self._reward = np.zeros((B, n_p))
-        self._terminated = np.zeros(B, dtype=bool)
-        self._truncated = np.zeros(B, dtype=bool)
-        self._disabled = np.zeros((B, n_p), dtype=bool)
-        self._new_heading = np.zeros((B, n_e))
-        self._dist_prev = np.zeros((B, n_p, n_e))
+        self._params = _kernels.pack_params(config)
+        self._arena = _kernels.Arena(
+            ppos=np.zeros((B, n_p, 2)),
+            phead=np.zeros((B, n_p)),
+            pactive=np.zeros((B, n_p), dtype=bool),
+            epos=np.zeros((B, n_e, 2)),
+            ehead=np.zeros((B, n_e)),
+            ealive=np.zeros((B, n_e), dtype=bool),
+            wander_left=np.zeros((B, n_e), dtype=np.int64),
+            wander_dir=np.zeros((B, n_e)),
+            slip=np.zeros((B, n_e), dtype=bool),
+            slip_dir=np.zeros((B, n_e, 2)),
+            t=np.zeros(B, dtype=np.int64),
+            done=np.ones(B, dtype=bool),  # nothing runs before the first reset
+            collided=np.zeros(B, dtype=bool),
+            captures=np.zeros(B, dtype=np.int64),
+            ep_return=np.zeros((B, n_p)),
+            rng=_rng.seed_state(np.arange(B)),
+        )
+        self._out = _kernels.StepOut(
+            obs=np.zeros((B, n_p, self.layout.dim), dtype=np.float32),
+            reward=np.zeros((B, n_p)),
+            terminated=np.zeros(B, dtype=bool),
+            truncated=np.zeros(B, dtype=bool),
+            disabled=np.zeros((B, n_p), dtype=bool),
+            new_heading=np.zeros((B, n_e)),
+            dist_prev=np.zeros((B, n_p, n_e)),
+        )
+        # Public views of the kernel arrays (the same objects, updated in place).
+        arena = self._arena
+        self.pursuer_pos = arena.ppos  # [B, n_p, 2] metres
+        self.pursuer_heading = arena.phead  # [B, n_p] radians
+        self.pursuer_active = arena.pactive  # [B, n_p] bool
+        self.evader_pos = arena.epos  # [B, n_e, 2]
+        self.evader_heading = arena.ehead  # [B, n_e]
+        self.evader_alive = arena.ealive  # [B, n_e] bool
+        self.t = arena.t  # [B] steps taken in the episode
+        self.done = arena.done  # [B] episodes that have ended (or never started)
+        self.collided = arena.collided  # [B] a collision happened in the episode
+        self.captures = arena.captures  # [B] evaders captured in the episode
+        self.episode_return = arena.ep_return  # [B, n_p] each pursuer's summed reward
+        self.obs = self._out.obs  # [B, n_p, obs_dim] float32
 
     # ---- reset -----------------------------------------------------------------------
     def reset(
@@ -90,30 +106,8 @@ class BatchedPursuit:
                     f"seeds must hold one seed per reset episode ({int(mask.sum())}), "
                     f"got {seeds.shape[0]}"
                 )
-            self._rng[mask] = _rng.seed_state(seeds)
-        _kernels.reset_masked(
-            mask,
-            self._fp,
-            self._spawn,
-            self._rng,
-            self.pursuer_pos,
-            self.pursuer_heading,
-            self.pursuer_active,
-            self.evader_pos,
-            self.evader_heading,
-            self.evader_alive,
-            self._wander_left,
-            self._wander_dir,
-            self._slip,
-            self._slip_dir,
-            self.t,
-            self.done,
-            self.collided,
-            self.captures,
-            self.episode_return,
-            self._rects,
-            self.obs,
-        )
+            self._arena.rng[mask] = _rng.seed_state(seeds)
+        _kernels.reset_masked(mask, self._params, self._arena, self.obs)
         if initial_state:
             fixed = np.zeros(self.batch_size, dtype=bool)
             for b, overrides in initial_state.items():
@@ -158,18 +152,7 @@ class BatchedPursuit:
             getattr(self, key)[b] = value
 
     def _observe(self, mask: np.ndarray) -> None:
-        _kernels.observe_all(
-            mask,
-            self._fp,
-            self._rects,
-            self.pursuer_pos,
-            self.pursuer_heading,
-            self.pursuer_active,
-            self.evader_pos,
-            self.evader_heading,
-            self.evader_alive,
-            self.obs,
-        )
+        _kernels.observe_all(mask, self._params, self._arena, self.obs)
 
     def _mask(self, mask: np.ndarray | None) -> np.ndarray:
         if mask is None:
@@ -190,36 +173,9 @@ class BatchedPursuit:
             where = np.argwhere(np.isnan(actions))[:3].tolist()
             raise ValueError(f"NaN action(s) at [episode, pursuer] {where}")
         actions = np.clip(actions, 0.0, 1.0)
-        _kernels.step_all(
-            actions,
-            self._fp,
-            self._ip,
-            self._rects,
-            self._rng,
-            self.pursuer_pos,
-            self.pursuer_heading,
-            self.pursuer_active,
-            self.evader_pos,
-            self.evader_heading,
-            self.evader_alive,
-            self._wander_left,
-            self._wander_dir,
-            self._slip,
-            self._slip_dir,
-            self.t,
-            self.done,
-            self.collided,
-            self.captures,
-            self.episode_return,
-            self.obs,
-            self._reward,
-            self._terminated,
-            self._truncated,
-            self._disabled,
-            self._new_heading,
-            self._dist_prev,
-        )
-        return StepResult(self.obs, self._reward, self._terminated, self._truncated, self._disabled)
+        _kernels.step_all(actions, self._params, self._arena, self._out)
+        out = self._out
+        return StepResult(out.obs, out.reward, out.terminated, out.truncated, out.disabled)
 
     # ---- metrics ---------------------------------------------------------------------
     @property
