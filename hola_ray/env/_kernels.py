@@ -225,24 +225,10 @@ def _place(rng, b, out, n, region, separation):
 def reset_episode(b, p, s):
     """Draw a fresh initial state for episode b from its own stream."""
     fp, ip, rects, spawn = p
-    (
-        ppos,
-        phead,
-        pactive,
-        epos,
-        ehead,
-        ealive,
-        wander_left,
-        wander_dir,
-        slip,
-        slip_dir,
-        t,
-        done,
-        collided,
-        captures,
-        ep_return,
-        rng,
-    ) = s
+    # fmt: off
+    (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
+     t, done, collided, captures, ep_return, rng) = s
+    # fmt: on
     _place(rng, b, ppos[b], ppos.shape[1], spawn[0], fp[F_SPAWN_SEP])
     _place(rng, b, epos[b], epos.shape[1], spawn[1], fp[F_SPAWN_SEP])
     for i in range(ppos.shape[1]):
@@ -277,24 +263,10 @@ def reset_masked(mask, p, s, obs):
 def observe(b, p, s, obs):
     """Write every pursuer's egocentric observation of episode b into obs[b] (SPEC §1)."""
     fp, ip, rects, spawn = p
-    (
-        ppos,
-        phead,
-        pactive,
-        epos,
-        ehead,
-        ealive,
-        wander_left,
-        wander_dir,
-        slip,
-        slip_dir,
-        t,
-        done,
-        collided,
-        captures,
-        ep_return,
-        rng,
-    ) = s
+    # fmt: off
+    (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
+     t, done, collided, captures, ep_return, rng) = s
+    # fmt: on
     n_p = ppos.shape[1]
     n_e = epos.shape[1]
     scale = fp[F_OBS_SCALE]
@@ -357,24 +329,10 @@ def evader_heading(b, e, p, s):
     change is bounded by the evader's max turn.
     """
     fp, ip, rects, spawn = p
-    (
-        ppos,
-        phead,
-        pactive,
-        epos,
-        ehead,
-        ealive,
-        wander_left,
-        wander_dir,
-        slip,
-        slip_dir,
-        t,
-        done,
-        collided,
-        captures,
-        ep_return,
-        rng,
-    ) = s
+    # fmt: off
+    (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
+     t, done, collided, captures, ep_return, rng) = s
+    # fmt: on
     n_p = ppos.shape[1]
     ex = epos[b, e, 0]
     ey = epos[b, e, 1]
@@ -507,24 +465,10 @@ def evader_heading(b, e, p, s):
 def step_episode(b, actions, p, s, out):
     """Advance episode b by one step with pursuer actions [n_p] in [0, 1] (already clipped)."""
     fp, ip, rects, spawn = p
-    (
-        ppos,
-        phead,
-        pactive,
-        epos,
-        ehead,
-        ealive,
-        wander_left,
-        wander_dir,
-        slip,
-        slip_dir,
-        t,
-        done,
-        collided,
-        captures,
-        ep_return,
-        rng,
-    ) = s
+    # fmt: off
+    (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
+     t, done, collided, captures, ep_return, rng) = s
+    # fmt: on
     obs, reward, terminated, truncated, disabled, new_heading, dist_prev = out
     n_p = ppos.shape[1]
     n_e = epos.shape[1]
