@@ -511,19 +511,7 @@ def step_episode(b, actions, p, s, out):
                 epos[b, e, 0] = nx
                 epos[b, e, 1] = ny
 
-    # captures, by any pursuer active this step
-    caught = 0
-    for e in range(n_e):
-        if not ealive[b, e]:
-            continue
-        for i in range(n_p):
-            if pactive[b, i]:
-                d = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
-                if d < fp[F_CAPTURE]:
-                    caught += 1
-                    break
-
-    # rewards: approach over evaders live at the start of the step, shared capture bonus
+    # approach term over the evaders live at the start of the step
     for i in range(n_p):
         if not pactive[b, i]:
             continue
@@ -532,19 +520,25 @@ def step_episode(b, actions, p, s, out):
             if ealive[b, e]:
                 d = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
                 r += (dist_prev[b, i, e] - d) / fp[F_APPROACH_SCALE]
-        reward[b, i] = r + fp[F_CAPTURE_REWARD] * caught
+        reward[b, i] = r
 
+    # captures, by any pursuer active this step; the bonus is shared by every active pursuer
+    caught = 0
+    for e in range(n_e):
+        if not ealive[b, e]:
+            continue
+        for i in range(n_p):
+            if pactive[b, i]:
+                d = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
+                if d < fp[F_CAPTURE]:
+                    ealive[b, e] = False
+                    caught += 1
+                    break
     if caught > 0:
-        for e in range(n_e):
-            if not ealive[b, e]:
-                continue
-            for i in range(n_p):
-                if pactive[b, i]:
-                    d = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
-                    if d < fp[F_CAPTURE]:
-                        ealive[b, e] = False
-                        break
         captures[b] += caught
+        for i in range(n_p):
+            if pactive[b, i]:
+                reward[b, i] += fp[F_CAPTURE_REWARD] * caught
 
     # collisions: walls, bars and disabled pursuers (safe radius); active pairs (κ)
     any_collision = False
