@@ -1,0 +1,262 @@
+"""The typed, validated configuration of one training run (SPEC §5).
+
+A run config is YAML with the sections `env`, `oracle`, `pretrain`, `population` and
+`grapher` plus the top-level `method`, `generations` and `seed`. Everything is checked
+when it is loaded, before Ray starts: a bad value raises `ConfigError` naming the field
+and the allowed range, and unknown keys are rejected.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from hola_ray.env.config import ConfigError, PursuitConfig
+
+METHODS = {"hola": "myerson", "hola_r": "mean_reward"}
+"""Method name → the node value whose shifted inverse is φ (SPEC §4)."""
+
+
+def _require(ok: bool, name: str, allowed: str, value: Any) -> None:
+    if not ok:
+        raise ConfigError(f"{name} must be {allowed}, got {value!r}")
+
+
+def _positive_int(section: str, obj: Any, *names: str, minimum: int = 1) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        ok = isinstance(value, int) and not isinstance(value, bool) and value >= minimum
+        _require(ok, f"{section}.{name}", f"an integer >= {minimum}", value)
+
+
+def _finite(section: str, obj: Any, name: str, low: float, high: float, allowed: str) -> None:
+    value = getattr(obj, name)
+    ok = isinstance(value, int | float) and math.isfinite(value) and low <= value <= high
+    _require(ok, f"{section}.{name}", allowed, value)
+
+
+@dataclass(frozen=True)
+class OracleConfig:
+    """The multi-agent PPO that trains the learner each generation (paper Appendix)."""
+
+    env_steps: int = 1_000_000
+    """environment steps the Oracle trains the learner for in one generation"""
+    train_batch: int = 1024
+    """environment steps per PPO update"""
+    minibatch: int = 256
+    """SGD minibatch size (agent steps of the learner)"""
+    epochs: int = 20
+    """PPO epochs over each train batch"""
+    lr: float = 3e-4
+    """Adam learning rate"""
+    gamma: float = 0.99
+    """reward discount"""
+    gae_lambda: float = 0.95
+    """GAE λ"""
+    vf_coef: float = 1.0
+    """value-loss coefficient"""
+    entropy_coef: float = 0.01
+    """entropy-bonus coefficient"""
+    clip: float = 0.2
+    """PPO clip parameter"""
+    hidden: tuple[int, ...] = (256, 256)
+    """hidden layer widths of the actor and the critic (tanh)"""
+    env_runners: int = 1
+    """RLlib env runner actors; on 2 CPUs one runner with many vector envs samples fastest"""
+    envs_per_runner: int = 16
+    """vectorised environments in each env runner"""
+
+    def validate(self) -> None:
+        s = "oracle"
+        _positive_int(s, self, "env_steps", "train_batch", "minibatch", "epochs")
+        _positive_int(s, self, "envs_per_runner")
+        _positive_int(s, self, "env_runners", minimum=0)
+        _require(
+            self.minibatch <= self.train_batch,
+            "oracle.minibatch",
+            f"<= oracle.train_batch ({self.train_batch})",
+            self.minibatch,
+        )
+        _finite(s, self, "lr", 1e-8, 1.0, "in [1e-8, 1]")
+        _finite(s, self, "gamma", 0.0, 1.0, "in [0, 1]")
+        _finite(s, self, "gae_lambda", 0.0, 1.0, "in [0, 1]")
+        _finite(s, self, "vf_coef", 0.0, 1e3, "in [0, 1000]")
+        _finite(s, self, "entropy_coef", 0.0, 1.0, "in [0, 1]")
+        _finite(s, self, "clip", 1e-3, 1.0, "in [0.001, 1]")
+        ok = len(self.hidden) >= 1 and all(isinstance(h, int) and h >= 1 for h in self.hidden)
+        _require(ok, "oracle.hidden", "a non-empty list of positive layer widths", self.hidden)
+
+
+@dataclass(frozen=True)
+class PretrainConfig:
+    """MEP pre-training of the initial population (paper §IV-B, pre-training phase)."""
+
+    env_steps: int = 200_000
+    """environment steps of joint PPO training of the initial population"""
+    alpha: float = 0.05
+    """α: weight of the population mean policy's entropy bonus −log π̄(a|s), in [0, 1]"""
+
+    def validate(self) -> None:
+        _positive_int("pretrain", self, "env_steps")
+        _finite("pretrain", self, "alpha", 0.0, 1.0, "in [0, 1]")
+
+
+@dataclass(frozen=True)
+class PopulationConfig:
+    """The population that the HyFoG describes (SPEC §4–5)."""
+
+    max_size: int = 10
+    """hypergraph size: most members in the population"""
+    initial_size: int = 4
+    """members pre-trained with MEP to build G_0"""
+    top_m: int = 3
+    """the learner joins when its η rank is within the top m (the approximate oracle)"""
+    phi_shift: float = 0.1
+    """φ = normalised 1/(x − x_min + shift·(x_max − x_min)), x the node values"""
+
+    def validate(self, l: int) -> None:  # noqa: E741 - the paper's l
+        s = "population"
+        _positive_int(s, self, "max_size", "initial_size", "top_m")
+        _require(
+            self.max_size >= l,
+            "population.max_size (the hypergraph size)",
+            f">= l = env.n_pursuers = {l}",
+            self.max_size,
+        )
+        _require(
+            l <= self.initial_size <= self.max_size,
+            "population.initial_size",
+            f"in [l = {l}, population.max_size = {self.max_size}]",
+            self.initial_size,
+        )
+        _require(
+            self.top_m <= self.max_size,
+            "population.top_m",
+            f"<= population.max_size ({self.max_size})",
+            self.top_m,
+        )
+        _finite(s, self, "phi_shift", 1e-6, 10.0, "in [1e-6, 10]")
+
+
+@dataclass(frozen=True)
+class GrapherConfig:
+    """How the Grapher weighs hyperedges by simulation."""
+
+    episodes_per_edge: int = 32
+    """evaluation episodes behind each hyperedge weight"""
+    edges_per_learner: int = 0
+    """(l − 1)-sets of members sampled for the learner's hyperedges; 0 = every one"""
+    workers: int = 2
+    """hyperedge evaluations in flight at once (member actors busy at a time)"""
+
+    def validate(self) -> None:
+        _positive_int("grapher", self, "episodes_per_edge", "workers")
+        _positive_int("grapher", self, "edges_per_learner", minimum=0)
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """One HOLA-Drone training run: method, budget and every sub-config."""
+
+    method: str = "hola"
+    """hola (φ from the inverse Myerson value) or hola_r (from the inverse mean reward)"""
+    generations: int = 10
+    """open-ended generations after pre-training"""
+    seed: int = 0
+    """run seed: network initialisation, sampling, evaluation episodes"""
+    env: PursuitConfig = field(default_factory=PursuitConfig)
+    """the pursuit scenario"""
+    oracle: OracleConfig = field(default_factory=OracleConfig)
+    """the PPO Oracle"""
+    pretrain: PretrainConfig = field(default_factory=PretrainConfig)
+    """MEP pre-training"""
+    population: PopulationConfig = field(default_factory=PopulationConfig)
+    """population and acceptance"""
+    grapher: GrapherConfig = field(default_factory=GrapherConfig)
+    """hyperedge evaluation"""
+
+    def __post_init__(self) -> None:
+        _require(
+            self.method in METHODS, "method", f"one of {', '.join(sorted(METHODS))}", self.method
+        )
+        _positive_int("run", self, "generations", minimum=0)
+        _positive_int("run", self, "seed", minimum=0)
+        self.oracle.validate()
+        self.pretrain.validate()
+        self.population.validate(self.l)
+        self.grapher.validate()
+
+    @property
+    def l(self) -> int:  # noqa: E743 - the paper's l
+        """Hyperedge size: one node per pursuer slot."""
+        return self.env.n_pursuers
+
+    @property
+    def phi_kind(self) -> str:
+        """The node value φ inverts: myerson or mean_reward."""
+        return METHODS[self.method]
+
+    # ---- YAML ---------------------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> RunConfig:
+        """Build from a plain mapping (YAML); unknown keys are an error."""
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"a run config must be a mapping, got {type(data).__name__}")
+        kwargs = _fields(cls, data, "")
+        for name, sub in (
+            ("oracle", OracleConfig),
+            ("pretrain", PretrainConfig),
+            ("population", PopulationConfig),
+            ("grapher", GrapherConfig),
+        ):
+            if name in kwargs:
+                kwargs[name] = sub(**_fields(sub, kwargs[name], f"{name}."))
+        if "env" in kwargs:
+            kwargs["env"] = PursuitConfig.from_dict(kwargs["env"] or {})
+        if "oracle" in kwargs:
+            hidden = kwargs["oracle"].hidden
+            if isinstance(hidden, list | tuple):
+                kwargs["oracle"] = dataclasses.replace(kwargs["oracle"], hidden=tuple(hidden))
+        return cls(**kwargs)
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> RunConfig:
+        path = Path(path)
+        if not path.is_file():
+            raise ConfigError(f"config file {path} does not exist")
+        return cls.from_dict(yaml.safe_load(path.read_text()) or {})
+
+    def to_dict(self) -> dict[str, Any]:
+        """A plain, YAML-safe mapping that `from_dict` reads back to an equal config."""
+        out: dict[str, Any] = {
+            "method": self.method,
+            "generations": self.generations,
+            "seed": self.seed,
+            "env": self.env.to_dict(),
+        }
+        for name in ("oracle", "pretrain", "population", "grapher"):
+            out[name] = dataclasses.asdict(getattr(self, name))
+        out["oracle"]["hidden"] = list(self.oracle.hidden)
+        return out
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+
+def _fields(cls: type, data: Any, prefix: str) -> dict[str, Any]:
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{prefix.rstrip('.') or 'config'} must be a mapping, got {data!r}")
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise ConfigError(
+            f"unknown key(s) {', '.join(prefix + k for k in unknown)}; "
+            f"allowed: {', '.join(sorted(names))}"
+        )
+    return dict(data)

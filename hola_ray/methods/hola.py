@@ -1,0 +1,241 @@
+"""HOLA-Drone's outer loop (SPEC §5): MEP pre-training and G_0, then generations of
+Oracle → Grapher → coordinator. The driver only sequences the phases; the population
+lives in the coordinator actor, the hyperedge evaluations in member actors, the PPO in
+RLlib's env runners and learner.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import ray
+from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+from hola_ray.methods.config import RunConfig
+from hola_ray.oracle import LEARNER, Oracle, member_module
+from hola_ray.policies.learned import export_from_rllib
+from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name
+from hola_ray.population.grapher import evaluate_edges
+from hola_ray.population.member import MemberPool
+from hola_ray.population.rundir import RunDir
+from hola_ray.population.state import EdgeResult, edge_seed
+
+
+class RunError(RuntimeError):
+    """A run cannot start or continue as asked (e.g. a run directory already in use)."""
+
+
+@dataclass
+class Trainer:
+    """Runs one HOLA-Drone training run in `run_dir` on the connected Ray cluster."""
+
+    config: RunConfig
+    run_dir: Path
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        self.run = RunDir(self.run_dir)
+        self.name = self.run.root.resolve().name
+        self.pool = MemberPool(self.config.env.to_dict(), run_name=self.name)
+        self.loaded: dict[int, int] = {}  # Oracle partner slot → node whose weights it holds
+
+    # ---- entry --------------------------------------------------------------------------
+    def fit(self) -> list[dict[str, Any]]:
+        """Train until `config.generations`; returns the metrics rows written this call."""
+        self.run.create(self.config.to_yaml())
+        here = ray.get_runtime_context().get_node_id()
+        self.coord = Coordinator.options(
+            name=coordinator_name(str(self.run_dir)),
+            namespace=NAMESPACE,
+            scheduling_strategy=NodeAffinitySchedulingStrategy(node_id=here, soft=False),
+        ).remote(self.config.to_dict(), str(self.run.root.resolve()))
+        rows: list[dict[str, Any]] = []
+        oracle = None
+        try:
+            last = ray.get(self.coord.last_completed.remote())
+            if last is None:
+                rows.append(self._pretrain())
+                last = 0
+            else:
+                self._say(f"resuming after generation {last} in {self.run.root}")
+            if last < self.config.generations:
+                oracle = Oracle(self.config)
+                learner = self.run.load_learner_state(last)
+                if learner is not None:
+                    oracle.set_trained_weights({LEARNER: learner})
+                for g in range(last + 1, self.config.generations + 1):
+                    rows.append(self._generation(g, oracle))
+        finally:
+            if oracle is not None:
+                oracle.stop()
+            self.pool.shutdown()
+            ray.get(self.coord.close.remote())
+            ray.kill(self.coord)
+        return rows
+
+    # ---- generation 0 -------------------------------------------------------------------
+    def _pretrain(self) -> dict[str, Any]:
+        c = self.config
+        self.coord.set_phase.remote("pretrain")
+        start = time.perf_counter()
+        mep = Oracle(c, mep_members=c.population.initial_size)
+        try:
+            stats = mep.train(c.pretrain.env_steps, desc="pre-train (MEP)", progress=self.progress)
+            states = mep.weights(mep.members)
+        finally:
+            mep.stop()
+        states_list = [states[m] for m in member_ids(c.population.initial_size)]
+        exports = [export_from_rllib(s) for s in states_list]
+        pretrain_s = time.perf_counter() - start
+        ray.get(self.coord.init_population.remote(exports, states_list))
+
+        self.coord.set_phase.remote("grapher")
+        results, grapher = self._grapher(0)
+        self.coord.set_phase.remote("coordinator")
+        start = time.perf_counter()
+        ray.get(self.coord.record.remote(results))
+        metrics = {
+            "env_steps": 0,
+            "pretrain_env_steps": stats.env_steps,
+            "pretrain_s": round(pretrain_s, 2),
+            "pretrain_env_steps_per_s": round(stats.env_steps_per_s, 1),
+            **_edge_summary("population", results),
+            **grapher,
+            "coordinator_s": round(time.perf_counter() - start, 4),
+        }
+        row = ray.get(self.coord.commit.remote(0, metrics, None, None))
+        self._say(
+            f"gen 0: pre-trained {c.population.initial_size} members with MEP in "
+            f"{pretrain_s:.0f}s; G_0 success {row['population_success']:.0%}, "
+            f"return {row['population_return']:.1f}"
+        )
+        return row
+
+    # ---- generations 1.. ----------------------------------------------------------------
+    def _generation(self, g: int, oracle: Oracle) -> dict[str, Any]:
+        c = self.config
+        prev = ray.get(self.coord.view.remote())["last_metrics"]
+        self.coord.set_phase.remote("oracle")
+        start = time.perf_counter()
+        slots = ray.get(self.coord.slots.remote())
+        changed = {slot: node for node, slot in slots.items() if self.loaded.get(slot) != node}
+        if changed:
+            states = ray.get(self.coord.member_states.remote(list(changed.values())))
+            oracle.set_partners({member_module(s): states[n] for s, n in changed.items()})
+            self.loaded.update(changed)
+        phi = ray.get(self.coord.phi.remote())
+        oracle.set_phi({member_module(slots[n]): p for n, p in phi.items()}, salt=g)
+        stats = oracle.train(c.oracle.env_steps, desc=f"gen {g} oracle", progress=self.progress)
+        learner_state = oracle.weights([LEARNER])[LEARNER]
+        export = export_from_rllib(learner_state)
+        oracle_s = time.perf_counter() - start
+
+        self.coord.set_phase.remote("grapher")
+        candidate = ray.get(self.coord.propose.remote(export, learner_state))
+        results, grapher = self._grapher(g)
+
+        self.coord.set_phase.remote("coordinator")
+        start = time.perf_counter()
+        ray.get(self.coord.record.remote(results))
+        decision = ray.get(self.coord.decide.remote())
+        if not decision.accepted:
+            self.pool.remove(candidate)
+        if decision.replaced is not None:
+            self.pool.remove(decision.replaced)
+        metrics = {
+            "env_steps": int(prev.get("env_steps", 0)) + stats.env_steps,
+            "oracle_s": round(oracle_s, 2),
+            "oracle_env_steps_per_s": round(stats.env_steps_per_s, 1),
+            "oracle_sampled_steps_per_s": round(stats.sampled_steps_per_s, 1),
+            "oracle_sample_s": round(stats.sample_s, 2),
+            "oracle_learn_s": round(stats.learn_s, 2),
+            "oracle_learner_return": stats.module_return.get(LEARNER, float("nan")),
+            **_edge_summary("learner", results),
+            **grapher,
+            "candidate": candidate,
+            "accepted": int(decision.accepted),
+            "rank": decision.rank,
+            "eta": decision.eta,
+            "replaced": -1 if decision.replaced is None else decision.replaced,
+            "coordinator_s": round(time.perf_counter() - start, 4),
+        }
+        row = ray.get(self.coord.commit.remote(g, metrics, learner_state, decision))
+        self.run.save_learner(export)
+        verdict = (
+            f"accepted as node {candidate} (rank {decision.rank}"
+            + (f", replaces {decision.replaced})" if decision.replaced is not None else ")")
+            if decision.accepted
+            else f"rejected (rank {decision.rank} > top {c.population.top_m})"
+        )
+        self._say(
+            f"gen {g}: learner success {row['learner_success']:.0%} ± "
+            f"{row['learner_success_se']:.0%}, return {row['learner_return']:.1f}; {verdict}; "
+            f"φ entropy {row['phi_entropy']:.2f}; oracle {oracle_s:.0f}s "
+            f"({stats.env_steps_per_s:.0f} steps/s), grapher {row['grapher_s']:.0f}s"
+        )
+        return row
+
+    def _grapher(self, g: int) -> tuple[list[EdgeResult], dict[str, float]]:
+        c = self.config
+        edges = ray.get(self.coord.edges_to_evaluate.remote(g))
+        nodes = sorted({v for e in edges for v in e})
+        exports = ray.get(self.coord.exports.remote(nodes))
+        actors = self.pool.ensure(exports)
+        results, stats = evaluate_edges(
+            edges,
+            actors,
+            ray.put(exports),
+            c.grapher.episodes_per_edge,
+            seed_of=lambda e: edge_seed(c.seed, g, e),
+            workers=c.grapher.workers,
+            desc=f"gen {g} grapher",
+            progress=self.progress,
+        )
+        return results, {
+            "grapher_edges": stats.edges,
+            "grapher_s": round(stats.wall_s, 2),
+            "grapher_episodes_per_s": round(stats.episodes_per_s, 1),
+            "grapher_retries": stats.retries,
+        }
+
+    def _say(self, text: str) -> None:
+        print(text, flush=True)
+
+
+def member_ids(count: int) -> list[str]:
+    return [member_module(s) for s in range(count)]
+
+
+def _edge_summary(prefix: str, results: list[EdgeResult]) -> dict[str, float]:
+    """Episode-weighted means over hyperedges, with the standard error across hyperedges."""
+    n = np.array([r.episodes for r in results], dtype=np.float64)
+    out: dict[str, float] = {}
+    for name, key in (
+        ("success", "success"),
+        ("return", "team_return"),
+        ("collision", "collision"),
+        ("length", "length"),
+    ):
+        x = np.array([getattr(r, key) for r in results], dtype=np.float64)
+        mean = float((x * n).sum() / n.sum())
+        se = float(x.std(ddof=1) / np.sqrt(x.size)) if x.size > 1 else 0.0
+        out[f"{prefix}_{name}"] = round(mean, 4)
+        out[f"{prefix}_{name}_se"] = round(se, 4)
+    return out
+
+
+def check_run_dir(run_dir: Path, resume: bool) -> None:
+    """Refuse to start a fresh run over a run directory that has generations."""
+    run = RunDir(run_dir)
+    if resume:
+        if not run.config.is_file():
+            raise RunError(f"--resume {run_dir}: no config.yaml there, not a run directory")
+    elif run.completed():
+        raise RunError(
+            f"{run_dir} already holds generations {run.completed()}; "
+            f"continue it with --resume {run_dir} or pick another --out"
+        )

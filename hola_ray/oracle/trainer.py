@@ -1,0 +1,238 @@
+"""The Oracle: RLlib multi-agent PPO (new API stack) over the pursuit arena (SPEC §5).
+
+One algorithm holds a trained module for the learner and a frozen module per population
+slot. A stateful `PartnerMapping` puts the learner in a random pursuer slot and draws the
+other slots from φ. Partner weights and φ are pushed straight into every env runner (and
+re-pushed into any env runner RLlib recreates), because weights set on a frozen module
+otherwise reach the env runners only an iteration late. The same class, in MEP mode,
+trains the initial population jointly with the population-entropy bonus.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from ray.rllib.algorithms.algorithm import Algorithm
+from ray.rllib.algorithms.ppo import PPOConfig
+from ray.rllib.callbacks.callbacks import RLlibCallback
+from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
+from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+from ray.tune.registry import register_env
+from tqdm.auto import tqdm
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.env.pettingzoo_env import PursuitEnv
+from hola_ray.methods.config import RunConfig
+from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
+from hola_ray.oracle.mep import MEPLearner
+from hola_ray.policies.learned import export_from_rllib
+
+ENV_NAME = "hola_ray_pursuit"
+ModuleState = Mapping[str, Any]
+"""An RLlib module's state: parameter name → numpy array."""
+
+
+def _make_env(env_config: Mapping[str, Any]) -> ParallelPettingZooEnv:
+    return ParallelPettingZooEnv(PursuitEnv(PursuitConfig.from_dict(env_config)))
+
+
+register_env(ENV_NAME, _make_env)
+
+
+class _RepushOnRecreate(RLlibCallback):
+    """An env runner that RLlib recreated lost φ and the partner weights: push them again."""
+
+    def on_env_runners_recreated(self, *, algorithm, env_runner_group, env_runner_indices, **kw):
+        pushed = getattr(algorithm, "_hola_pushed", None)
+        if pushed is not None:
+            pushed.push(env_runner_group, remote_ids=list(env_runner_indices), local=False)
+
+
+@dataclass
+class _Pushed:
+    """What the Oracle last pushed into the env runners (φ, salt, partner weights)."""
+
+    phi: dict[str, float]
+    salt: int
+    weights: dict[str, ModuleState]
+
+    def push(self, group, remote_ids: list[int] | None = None, local: bool = True) -> None:
+        phi, salt, weights = self.phi, self.salt, self.weights
+
+        def apply(runner) -> None:
+            runner.config.policy_mapping_fn.set_phi(phi, salt)
+            for mid, state in weights.items():
+                runner.module[mid].set_state(state)
+
+        group.foreach_env_runner(apply, local_env_runner=local, remote_worker_ids=remote_ids)
+
+
+@dataclass(frozen=True)
+class TrainStats:
+    """What one `Oracle.train` call did."""
+
+    env_steps: int
+    """environment steps sampled in this call"""
+    iterations: int
+    """PPO updates"""
+    wall_s: float
+    """seconds spent in `algo.train()`"""
+    sample_s: float
+    """of which sampling (RLlib's env_runner_sampling_timer)"""
+    learn_s: float
+    """of which the learner update (RLlib's learner_update_timer)"""
+    episode_return: float
+    """mean summed team return of the last iteration's episodes (NaN if none ended)"""
+    module_return: dict[str, float]
+    """mean return per module over the last iteration's episodes"""
+
+    @property
+    def env_steps_per_s(self) -> float:
+        return self.env_steps / max(self.wall_s, 1e-9)
+
+    @property
+    def sampled_steps_per_s(self) -> float:
+        return self.env_steps / max(self.sample_s, 1e-9)
+
+
+class Oracle:
+    """Multi-agent PPO over the learner and frozen population partners (or, with
+    `mep_members`, the MEP pre-training of that many population members)."""
+
+    def __init__(self, config: RunConfig, mep_members: int = 0, seed: int | None = None):
+        self.config = config
+        self.mep = mep_members > 0
+        slots = range(mep_members if self.mep else config.population.max_size)
+        self.members = [member_module(s) for s in slots]
+        self.modules = self.members if self.mep else [LEARNER, *self.members]
+        trainable = self.members if self.mep else [LEARNER]
+        uniform = {m: 1.0 for m in self.members}
+        self.mapping = PartnerMapping(config.env.n_pursuers, uniform, learner=not self.mep)
+        self.algo: Algorithm = self._algorithm_config(trainable, seed).build_algo()
+        self._pushed = _Pushed(phi=uniform, salt=0, weights={})
+        self.algo._hola_pushed = self._pushed  # read by _RepushOnRecreate
+        self.env_steps = 0
+
+    def _algorithm_config(self, trainable: Sequence[str], seed: int | None) -> PPOConfig:
+        o, env = self.config.oracle, self.config.env
+        model = {"fcnet_hiddens": list(o.hidden), "fcnet_activation": "tanh"}
+        model["vf_share_layers"] = False
+        specs = {m: RLModuleSpec(model_config=model) for m in self.modules}
+        learner_extra = {"mep_alpha": self.config.pretrain.alpha, "mep_modules": self.members}
+        return (
+            PPOConfig()
+            .environment(ENV_NAME, env_config=env.to_dict())
+            .env_runners(
+                num_env_runners=o.env_runners,
+                num_envs_per_env_runner=o.envs_per_runner,
+                rollout_fragment_length="auto",
+                num_cpus_per_env_runner=1,
+            )
+            .multi_agent(
+                policies=set(self.modules),
+                policy_mapping_fn=self.mapping,
+                policies_to_train=list(trainable),
+            )
+            .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
+            .training(
+                train_batch_size_per_learner=o.train_batch,
+                minibatch_size=o.minibatch,
+                num_epochs=o.epochs,
+                lr=o.lr,
+                gamma=o.gamma,
+                lambda_=o.gae_lambda,
+                vf_loss_coeff=o.vf_coef,
+                entropy_coeff=o.entropy_coef,
+                clip_param=o.clip,
+                learner_class=MEPLearner if self.mep else None,
+                learner_config_dict=learner_extra if self.mep else {},
+            )
+            .callbacks(_RepushOnRecreate)
+            .fault_tolerance(restart_failed_env_runners=True)
+            .debugging(seed=self.config.seed if seed is None else seed, log_level="ERROR")
+            .reporting(metrics_num_episodes_for_smoothing=20)
+        )
+
+    # ---- partners -----------------------------------------------------------------------
+    def set_partners(self, weights: Mapping[str, ModuleState]) -> None:
+        """Load frozen partner modules (module id → RLlib module state) everywhere: the
+        learner group and every env runner, effective for the very next episode."""
+        unknown = set(weights) - set(self.members)
+        if unknown:
+            raise ValueError(f"no partner modules {sorted(unknown)}; have {self.members}")
+        if not weights:
+            return
+        self.algo.learner_group.set_weights(dict(weights))
+        self._pushed.weights.update(weights)
+        _Pushed({**self._pushed.phi}, self._pushed.salt, dict(weights)).push(
+            self.algo.env_runner_group
+        )
+
+    def set_phi(self, phi: Mapping[str, float], salt: int = 0) -> None:
+        """Sample partner modules from φ (module id → probability) from the next episode on;
+        `salt` makes each generation's slot draws differ for the same episode ids."""
+        unknown = set(phi) - set(self.members)
+        if unknown:
+            raise ValueError(f"φ names modules {sorted(unknown)} that are not partners")
+        self.mapping.set_phi(phi, salt)
+        self._pushed.phi, self._pushed.salt = self.mapping.phi, salt
+        _Pushed(self._pushed.phi, salt, {}).push(self.algo.env_runner_group)
+
+    # ---- training -----------------------------------------------------------------------
+    def train(self, env_steps: int, desc: str = "oracle", progress: bool = True) -> TrainStats:
+        """Run PPO updates until at least `env_steps` environment steps were sampled."""
+        done = iterations = 0
+        wall = sample = learn = 0.0
+        result: dict[str, Any] = {}
+        with tqdm(total=env_steps, desc=desc, unit="step", disable=not progress) as bar:
+            while done < env_steps:
+                start = time.perf_counter()
+                result = self.algo.train()
+                wall += time.perf_counter() - start
+                runners = result.get("env_runners", {})
+                steps = int(runners.get("num_env_steps_sampled", 0))
+                timers = result.get("timers", {})
+                sample += float(timers.get("env_runner_sampling_timer", 0.0))
+                learn += float(timers.get("learner_update_timer", 0.0))
+                done += steps
+                iterations += 1
+                bar.update(min(steps, env_steps - bar.n))
+                ret = runners.get("episode_return_mean", float("nan"))
+                bar.set_postfix(ret=f"{ret:.1f}", sps=f"{done / wall:.0f}")
+        self.env_steps += done
+        runners = result.get("env_runners", {})
+        module_return = {
+            k: float(v) for k, v in runners.get("module_episode_returns_mean", {}).items()
+        }
+        return TrainStats(
+            env_steps=done,
+            iterations=iterations,
+            wall_s=wall,
+            sample_s=sample,
+            learn_s=learn,
+            episode_return=float(runners.get("episode_return_mean", np.nan)),
+            module_return=module_return,
+        )
+
+    # ---- weights ------------------------------------------------------------------------
+    def weights(self, module_ids: Sequence[str]) -> dict[str, dict[str, np.ndarray]]:
+        """Current RLlib states of modules, read from the learner group (never a stale copy)."""
+        return self.algo.learner_group.get_weights(list(module_ids))
+
+    def set_trained_weights(self, weights: Mapping[str, ModuleState]) -> None:
+        """Restore trained modules (on resume), learner group and env runners alike."""
+        self.algo.learner_group.set_weights(dict(weights))
+        _Pushed(self._pushed.phi, self._pushed.salt, dict(weights)).push(self.algo.env_runner_group)
+
+    def export(self, module_id: str) -> dict[str, Any]:
+        """The plain-torch export of a module (what `MLPPolicy` plays)."""
+        state = self.weights([module_id])[module_id]
+        return export_from_rllib(state, activation="tanh", low=0.0, high=1.0)
+
+    def stop(self) -> None:
+        self.algo.stop()

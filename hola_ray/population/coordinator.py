@@ -1,0 +1,221 @@
+"""The coordinator: a named Ray actor that owns the HyFoG and the population.
+
+It computes η and φ with `hola_ray.hypergraph` (through `Population`), accepts or
+rejects each generation's candidate, persists the run after every generation, and exports
+generation, learner success and φ entropy with `ray.util.metrics` (Ray dashboard /
+Prometheus). All decisions live in the pure `Population`; this actor passes calls through
+and does the I/O.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import ray
+
+from hola_ray.methods.config import RunConfig
+from hola_ray.population.rundir import RunDir
+from hola_ray.population.state import Decision, EdgeResult, Population
+
+NAMESPACE = "hola_ray"
+"""Ray namespace of every named actor of hola_ray."""
+
+
+def coordinator_name(run_dir: str) -> str:
+    """The coordinator's actor name for a run directory (its folder name)."""
+    from pathlib import Path
+
+    return f"coordinator:{Path(run_dir).resolve().name}"
+
+
+def phi_entropy(phi: Mapping[Any, float]) -> float:
+    """Shannon entropy of φ in nats (log |V| when uniform)."""
+    p = np.array([v for v in phi.values() if v > 0], dtype=np.float64)
+    return float(-(p * np.log(p)).sum()) if p.size else 0.0
+
+
+@ray.remote(num_cpus=0, max_restarts=0)
+class Coordinator:
+    """Owns `Population` and the run directory; one per run, named `coordinator:<run>`."""
+
+    def __init__(self, config: Mapping[str, Any], run_dir: str):
+        from ray.util.metrics import Gauge
+        from tensorboardX import SummaryWriter
+
+        self.config = RunConfig.from_dict(config)
+        self.run = RunDir(run_dir)
+        self.run.clean_partial()
+        self.generation = self.run.last_completed()
+        if self.generation is None:
+            p = self.config.population
+            self.population = Population(
+                self.config.l, p.max_size, p.top_m, self.config.phi_kind, p.phi_shift
+            )
+            self.last_metrics: dict[str, Any] = {}
+        else:
+            state = self.run.read_json(self.generation, "state.json")
+            self.population = Population.from_dict(state["population"])
+            self.last_metrics = self.run.read_json(self.generation, "metrics.json")
+        self.phase = "idle"
+        self._candidate: tuple[dict, dict] | None = None
+        self._edges: list[EdgeResult] = []
+        self._pending_exports: dict[int, tuple[dict, dict]] = {}
+        tags = ("run",)
+        self._tags = {"run": self.run.root.name}
+        self._gauges = {
+            "generation": Gauge("hola_generation", "last completed generation", tags),
+            "learner_success": Gauge("hola_learner_success", "learner success rate", tags),
+            "phi_entropy": Gauge("hola_phi_entropy", "entropy of phi (nats)", tags),
+            "population_size": Gauge("hola_population_size", "members", tags),
+        }
+        self._tb = SummaryWriter(str(self.run.tensorboard))
+
+    # ---- the generation's steps ---------------------------------------------------------
+    def last_completed(self) -> int | None:
+        return self.generation
+
+    def set_phase(self, phase: str) -> None:
+        self.phase = phase
+
+    def init_population(
+        self, exports: Sequence[Mapping[str, Any]], states: Sequence[Mapping[str, Any]]
+    ) -> list[int]:
+        """Seat the MEP-pretrained members (generation 0)."""
+        nodes = self.population.add_initial(len(exports))
+        for node, export, state in zip(nodes, exports, states, strict=True):
+            self._pending_exports[node] = (dict(export), dict(state))
+        return nodes
+
+    def propose(self, export: Mapping[str, Any], state: Mapping[str, Any]) -> int:
+        """Add the learner's snapshot as this generation's candidate node."""
+        node = self.population.propose()
+        self._pending_exports[node] = (dict(export), dict(state))
+        return node
+
+    def edges_to_evaluate(self, generation: int) -> list[tuple[int, ...]]:
+        """G_0's hyperedges at generation 0; the candidate's sampled ones after."""
+        if generation == 0:
+            return self.population.initial_edges()
+        rng = np.random.default_rng([self.config.seed, generation, 1])
+        return self.population.candidate_edges(self.config.grapher.edges_per_learner, rng)
+
+    def exports(self, nodes: Sequence[int]) -> dict[int, dict[str, Any]]:
+        """Plain-torch exports of nodes (pending ones from memory, members from disk)."""
+        out = {}
+        for node in nodes:
+            if node in self._pending_exports:
+                out[node] = self._pending_exports[node][0]
+            else:
+                out[node] = self.run.load_member_export(node)
+        return out
+
+    def member_states(self, nodes: Sequence[int]) -> dict[int, dict[str, Any]]:
+        """RLlib module states of members, to seat them as frozen partners."""
+        out = {}
+        for node in nodes:
+            if node in self._pending_exports:
+                out[node] = self._pending_exports[node][1]
+            else:
+                out[node] = self.run.load_member_state(node)
+        return out
+
+    def record(self, results: Sequence[EdgeResult]) -> None:
+        self.population.record(results)
+        self._edges = list(results)
+
+    def decide(self) -> Decision:
+        decision = self.population.decide()
+        if not decision.accepted:
+            self._pending_exports.pop(decision.candidate, None)
+        return decision
+
+    def commit(
+        self,
+        generation: int,
+        metrics: Mapping[str, Any],
+        learner_state: Mapping[str, Any] | None,
+        decision: Decision | None = None,
+    ) -> dict[str, Any]:
+        """Persist generation `generation` and publish its metrics; returns the metrics row."""
+        start = time.perf_counter()
+        for node, (export, state) in self._pending_exports.items():
+            if node in self.population.slots:
+                self.run.save_member(node, export, state)
+        self._pending_exports.clear()
+        phi = self.population.phi()
+        eta = self.population.eta()
+        row = dict(metrics)
+        row.update(
+            generation=generation,
+            population_size=len(self.population.members),
+            phi_entropy=phi_entropy(phi),
+        )
+        files = {
+            "state.json": {
+                "generation": generation,
+                "population": self.population.to_dict(),
+                "decision": decision.to_dict() if decision else None,
+            },
+            "hyfog.json": self.population.hyfog.to_dict(),
+            "phi.json": {str(k): v for k, v in phi.items()},
+            "eta.json": {str(k): v for k, v in eta.items()},
+            "edges.json": [vars(r) | {"nodes": list(r.nodes)} for r in self._edges],
+        }
+        row["persist_s"] = round(time.perf_counter() - start, 4)
+        files["metrics.json"] = row
+        self.run.write_generation(generation, files, learner_state)
+        self.run.rewrite_metrics_csv()
+        self.generation = generation
+        self.last_metrics = row
+        self._edges = []
+        self._publish(row)
+        return row
+
+    def _publish(self, row: Mapping[str, Any]) -> None:
+        g = row["generation"]
+        self._gauges["generation"].set(g, tags=self._tags)
+        self._gauges["phi_entropy"].set(row["phi_entropy"], tags=self._tags)
+        self._gauges["population_size"].set(row["population_size"], tags=self._tags)
+        success = row.get("learner_success")
+        if success is not None and math.isfinite(success):
+            self._gauges["learner_success"].set(success, tags=self._tags)
+        for key, value in row.items():
+            numeric = isinstance(value, int | float) and not isinstance(value, bool)
+            if numeric and key != "generation" and math.isfinite(value):
+                self._tb.add_scalar(key, value, g)
+        self._tb.flush()
+
+    # ---- views --------------------------------------------------------------------------
+    def slots(self) -> dict[int, int]:
+        return dict(self.population.slots)
+
+    def phi(self) -> dict[int, float]:
+        return self.population.phi()
+
+    def view(self) -> dict[str, Any]:
+        """The live status: generation, phase, members with slot, η, φ, value; metrics."""
+        phi, eta, values = self.population.phi(), self.population.eta(), self.population.values()
+        return {
+            "run_dir": str(self.run.root),
+            "generation": self.generation,
+            "phase": self.phase,
+            "method": self.config.method,
+            "members": [
+                {
+                    "node": v,
+                    "slot": self.population.slots[v],
+                    "eta": eta.get(v),
+                    "phi": phi.get(v),
+                    "value": values.get(v),
+                }
+                for v in self.population.members
+            ],
+            "last_metrics": self.last_metrics,
+        }
+
+    def close(self) -> None:
+        self._tb.close()

@@ -1,0 +1,97 @@
+"""The Grapher: hyperedge evaluations fanned out over member actors with `ray.wait`.
+
+At most `workers` evaluations are in flight. Each goes to the least busy member actor of
+its hyperedge (any live member when none of them is). A failed evaluation (a member actor
+that died) is sent again, with the same seed, to another member, so the weights do not
+depend on failures or on scheduling.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import ray
+from ray.exceptions import RayActorError
+from tqdm.auto import tqdm
+
+from hola_ray.population.state import EdgeResult
+
+MAX_ATTEMPTS = 4
+"""Tries per hyperedge before the Grapher gives up."""
+
+
+@dataclass(frozen=True)
+class GrapherStats:
+    edges: int
+    episodes: int
+    wall_s: float
+    retries: int
+
+    @property
+    def episodes_per_s(self) -> float:
+        return self.episodes / max(self.wall_s, 1e-9)
+
+
+def evaluate_edges(
+    edges: Sequence[tuple[int, ...]],
+    actors: Mapping[int, ray.actor.ActorHandle],
+    exports_ref: ray.ObjectRef,
+    episodes: int,
+    seed_of: Callable[[tuple[int, ...]], int],
+    workers: int,
+    desc: str = "grapher",
+    progress: bool = True,
+) -> tuple[list[EdgeResult], GrapherStats]:
+    """Evaluate every hyperedge; results in the order of `edges`.
+
+    actors: node → its Member actor (every node of every edge must have an export in
+        `exports_ref`, an object-store dict node → export).
+    seed_of: hyperedge → its evaluation seed.
+    """
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    if not actors:
+        raise ValueError("no member actors to evaluate on")
+    results: list[EdgeResult | None] = [None] * len(edges)
+    attempts = [0] * len(edges)
+    busy = dict.fromkeys(actors, 0)
+    dead: set[int] = set()
+    pending: dict[ray.ObjectRef, tuple[int, int]] = {}  # ref → (edge index, actor node)
+    queue = list(range(len(edges)))
+    retries = 0
+    start = time.perf_counter()
+
+    def submit(k: int) -> None:
+        live = [v for v in actors if v not in dead]
+        if not live:
+            raise RuntimeError("every member actor died during the Grapher")
+        own = [v for v in edges[k] if v in actors and v not in dead]
+        node = min(own or live, key=lambda v: busy[v])
+        busy[node] += 1
+        attempts[k] += 1
+        ref = actors[node].evaluate.remote(edges[k], exports_ref, episodes, seed_of(edges[k]))
+        pending[ref] = (k, node)
+
+    with tqdm(total=len(edges) * episodes, desc=desc, unit="ep", disable=not progress) as bar:
+        while queue or pending:
+            while queue and len(pending) < workers:
+                submit(queue.pop(0))
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            k, node = pending.pop(ready[0])
+            busy[node] -= 1
+            try:
+                results[k] = ray.get(ready[0])
+            except RayActorError as err:
+                dead.add(node)
+                if attempts[k] >= MAX_ATTEMPTS:
+                    raise RuntimeError(f"hyperedge {edges[k]} failed {attempts[k]} times") from err
+                retries += 1
+                queue.insert(0, k)
+                continue
+            bar.update(episodes)
+    wall = time.perf_counter() - start
+    done = [r for r in results if r is not None]
+    assert len(done) == len(edges)
+    return done, GrapherStats(len(edges), len(edges) * episodes, wall, retries)

@@ -1,0 +1,167 @@
+"""The run directory: everything a run leaves on disk, written so a kill loses nothing.
+
+    RUN_DIR/
+      config.yaml                 the validated run config
+      members/node_0007.pt        every member's plain-torch export (`MLPPolicy.load`)
+      members/node_0007.rllib.pt  its full RLlib module state (to seat it as a partner again)
+      generations/gen_0003/       one folder per completed generation (0 = pre-training):
+        state.json                population, slots, next node id, the decision
+        hyfog.json  phi.json      the HyFoG and φ after the generation
+        metrics.json              the generation's metrics
+        learner.rllib.pt          the learner's RLlib state at the end of the generation
+      metrics.csv                 one row per completed generation
+      tb/                         TensorBoard events of the same metrics
+      learner.pt                  the latest learner as a plain-torch export
+
+A generation folder is written under a temporary name and renamed into place, so it is
+either complete or absent: the last complete folder is where `--resume` starts.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import torch
+
+GEN_PREFIX = "gen_"
+
+
+class RunDir:
+    """Paths and atomic reads/writes of one run's directory."""
+
+    def __init__(self, root: str | Path):
+        self.root = Path(root)
+        self.members = self.root / "members"
+        self.generations = self.root / "generations"
+        self.config = self.root / "config.yaml"
+        self.metrics_csv = self.root / "metrics.csv"
+        self.tensorboard = self.root / "tb"
+        self.learner = self.root / "learner.pt"
+
+    def create(self, config_yaml: str) -> None:
+        self.members.mkdir(parents=True, exist_ok=True)
+        self.generations.mkdir(parents=True, exist_ok=True)
+        _atomic_write_text(self.config, config_yaml)
+
+    # ---- members ------------------------------------------------------------------------
+    def member_export(self, node: int) -> Path:
+        return self.members / f"node_{node:04d}.pt"
+
+    def member_state(self, node: int) -> Path:
+        return self.members / f"node_{node:04d}.rllib.pt"
+
+    def save_member(self, node: int, export: Mapping[str, Any], state: Mapping[str, Any]) -> None:
+        _atomic_torch_save(dict(export), self.member_export(node))
+        _atomic_torch_save(dict(state), self.member_state(node))
+
+    def load_member_state(self, node: int) -> dict[str, Any]:
+        return torch.load(self.member_state(node), map_location="cpu", weights_only=False)
+
+    def load_member_export(self, node: int) -> dict[str, Any]:
+        return torch.load(self.member_export(node), map_location="cpu", weights_only=True)
+
+    def save_learner(self, export: Mapping[str, Any]) -> None:
+        """The latest learner as a plain-torch export (`MLPPolicy.load(config, path)`)."""
+        _atomic_torch_save(dict(export), self.learner)
+
+    # ---- generations --------------------------------------------------------------------
+    def generation(self, g: int) -> Path:
+        return self.generations / f"{GEN_PREFIX}{g:04d}"
+
+    def completed(self) -> list[int]:
+        """Completed generations in order (leftover temporary folders are ignored)."""
+        if not self.generations.is_dir():
+            return []
+        out = []
+        for p in self.generations.iterdir():
+            name = p.name
+            if p.is_dir() and name.startswith(GEN_PREFIX) and name[len(GEN_PREFIX) :].isdigit():
+                out.append(int(name[len(GEN_PREFIX) :]))
+        return sorted(out)
+
+    def last_completed(self) -> int | None:
+        done = self.completed()
+        return done[-1] if done else None
+
+    def write_generation(
+        self,
+        g: int,
+        files: Mapping[str, Any],
+        learner_state: Mapping[str, Any] | None,
+    ) -> Path:
+        """Write generation g's folder atomically: JSON files from `files`, the learner."""
+        final = self.generation(g)
+        if final.exists():
+            raise FileExistsError(f"generation {g} is already complete in {final}")
+        tmp = self.generations / f".tmp_{GEN_PREFIX}{g:04d}_{os.getpid()}"
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        for name, payload in files.items():
+            (tmp / name).write_text(json.dumps(payload, indent=1))
+        if learner_state is not None:
+            torch.save(dict(learner_state), tmp / "learner.rllib.pt")
+        _fsync_dir(tmp)
+        os.rename(tmp, final)
+        _fsync_dir(self.generations)
+        return final
+
+    def read_json(self, g: int, name: str) -> Any:
+        return json.loads((self.generation(g) / name).read_text())
+
+    def load_learner_state(self, g: int) -> dict[str, Any] | None:
+        path = self.generation(g) / "learner.rllib.pt"
+        if not path.exists():
+            return None
+        return torch.load(path, map_location="cpu", weights_only=False)
+
+    def clean_partial(self) -> None:
+        """Remove half-written generation folders left by a killed driver."""
+        if self.generations.is_dir():
+            for p in self.generations.glob(f".tmp_{GEN_PREFIX}*"):
+                shutil.rmtree(p, ignore_errors=True)
+
+    # ---- metrics ------------------------------------------------------------------------
+    def metrics_rows(self) -> list[dict[str, Any]]:
+        return [self.read_json(g, "metrics.json") for g in self.completed()]
+
+    def rewrite_metrics_csv(self) -> None:
+        """metrics.csv from the completed generations' metrics.json (never a lost or doubled
+        row, whatever was killed when)."""
+        rows = self.metrics_rows()
+        if not rows:
+            return
+        columns: list[str] = ["generation"]
+        for row in rows:
+            columns += [k for k in row if k not in columns]
+        tmp = self.metrics_csv.with_suffix(".csv.tmp")
+        with tmp.open("w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=columns)
+            writer.writeheader()
+            writer.writerows(rows)
+        os.replace(tmp, self.metrics_csv)
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _atomic_torch_save(obj: Any, path: Path) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+def _fsync_dir(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)

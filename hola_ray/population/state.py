@@ -1,0 +1,184 @@
+"""The population and its HyFoG, with the coordinator's decisions: pure Python, no Ray.
+
+Nodes get increasing integer ids: the pre-trained members 0..K−1, then one id per
+generation's learner candidate. Each member sits in a population slot (0..max_size−1),
+which is the Oracle's frozen partner module `member_<slot>`; a replaced member's slot
+goes to the newcomer. The HyFoG has room for the population plus the candidate.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from hola_ray.hypergraph import HyFoG, centrality, lowest_centrality, phi, rank_of
+from hola_ray.hypergraph.phi import node_values
+
+
+@dataclass(frozen=True)
+class EdgeResult:
+    """The Grapher's measurement of one hyperedge."""
+
+    nodes: tuple[int, ...]
+    team_return: float
+    """mean over episodes of the team's summed return: the hyperedge weight"""
+    success: float
+    collision: float
+    length: float
+    episodes: int
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The coordinator's verdict on a generation's candidate."""
+
+    candidate: int
+    accepted: bool
+    rank: int
+    """competition rank of the candidate's η (1 = best)"""
+    eta: float
+    replaced: int | None
+    """the lowest-η member that made room, if the population was full"""
+    slot: int | None
+    """the candidate's population slot when accepted"""
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+class Population:
+    """Members, their slots, the HyFoG over them, and the φ/η views of it."""
+
+    def __init__(self, l: int, max_size: int, top_m: int, phi_kind: str, phi_shift: float):  # noqa: E741
+        self.l, self.max_size, self.top_m = l, max_size, top_m
+        self.phi_kind, self.phi_shift = phi_kind, phi_shift
+        self.hyfog = HyFoG(l=l, max_size=max_size + 1)
+        self.slots: dict[int, int] = {}  # member node → population slot
+        self.next_node = 0
+        self.candidate: int | None = None
+
+    # ---- membership ---------------------------------------------------------------------
+    @property
+    def members(self) -> list[int]:
+        """Member nodes in insertion order (the candidate is not a member)."""
+        return [v for v in self.hyfog.nodes if v in self.slots]
+
+    def add_initial(self, count: int) -> list[int]:
+        """Seat `count` pre-trained members in slots 0..count−1."""
+        if self.slots:
+            raise ValueError("the initial population is already seated")
+        if not self.l <= count <= self.max_size:
+            raise ValueError(f"initial population must hold {self.l}..{self.max_size} members")
+        nodes = list(range(count))
+        for node in nodes:
+            self.hyfog.add_node(node)
+            self.slots[node] = node
+        self.next_node = count
+        return nodes
+
+    def propose(self) -> int:
+        """Add the generation's learner snapshot as a candidate node; returns its id."""
+        if self.candidate is not None:
+            raise ValueError(f"candidate {self.candidate} is still undecided")
+        node = self.next_node
+        self.next_node += 1
+        self.hyfog.add_node(node)
+        self.candidate = node
+        return node
+
+    def initial_edges(self) -> list[tuple[int, ...]]:
+        """Every l-set of members: the hyperedges of G_0."""
+        return [tuple(c) for c in itertools.combinations(self.members, self.l)]
+
+    def candidate_edges(self, count: int, rng: np.random.Generator) -> list[tuple[int, ...]]:
+        """The candidate with `count` distinct (l − 1)-sets of members (all when count is 0
+        or at least their number), in a fixed order."""
+        if self.candidate is None:
+            raise ValueError("no candidate proposed")
+        sets = list(itertools.combinations(self.members, self.l - 1))
+        if 0 < count < len(sets):
+            picks = np.sort(rng.choice(len(sets), size=count, replace=False))
+            sets = [sets[k] for k in picks]
+        return [(self.candidate, *rest) for rest in sets]
+
+    def record(self, results: Iterable[EdgeResult]) -> None:
+        """Write measured hyperedge weights into the HyFoG."""
+        for r in results:
+            self.hyfog.set_weight(r.nodes, r.team_return, r.episodes)
+
+    def decide(self) -> Decision:
+        """Accept the candidate if its η rank is within the top m; seat it, replacing the
+        lowest-η member when full; otherwise remove it with its hyperedges."""
+        node = self.candidate
+        if node is None:
+            raise ValueError("no candidate to decide on")
+        rank = rank_of(self.hyfog, node)
+        eta = centrality(self.hyfog)[node]
+        replaced = slot = None
+        accepted = rank <= self.top_m
+        if accepted:
+            if len(self.slots) >= self.max_size:
+                replaced = lowest_centrality(self.hyfog, exclude=node)
+                slot = self.slots.pop(replaced)
+                self.hyfog.remove_node(replaced)
+            else:
+                slot = min(set(range(self.max_size)) - set(self.slots.values()))
+            self.slots[node] = slot
+        else:
+            self.hyfog.remove_node(node)
+        self.candidate = None
+        return Decision(node, accepted, rank, eta, replaced, slot)
+
+    # ---- views --------------------------------------------------------------------------
+    def member_graph(self) -> HyFoG:
+        """The HyFoG restricted to members (the candidate and its hyperedges left out)."""
+        if self.candidate is None:
+            return self.hyfog
+        g = HyFoG.from_dict(self.hyfog.to_dict())
+        g.remove_node(self.candidate)
+        return g
+
+    def phi(self) -> dict[int, float]:
+        """Partner distribution over members (SPEC §4): higher for lower node value."""
+        return phi(self.member_graph(), self.phi_kind, self.phi_shift)
+
+    def eta(self) -> dict[int, float]:
+        return centrality(self.member_graph())
+
+    def values(self) -> dict[int, float | None]:
+        """The node values φ inverts (Myerson value or mean hyperedge reward)."""
+        return node_values(self.member_graph(), self.phi_kind)
+
+    # ---- persistence --------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        if self.candidate is not None:
+            raise ValueError("persist between generations only (a candidate is undecided)")
+        return {
+            "l": self.l,
+            "max_size": self.max_size,
+            "top_m": self.top_m,
+            "phi_kind": self.phi_kind,
+            "phi_shift": self.phi_shift,
+            "next_node": self.next_node,
+            "slots": {str(k): v for k, v in self.slots.items()},
+            "hyfog": self.hyfog.to_dict(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Population:
+        p = cls(data["l"], data["max_size"], data["top_m"], data["phi_kind"], data["phi_shift"])
+        p.hyfog = HyFoG.from_dict(data["hyfog"])
+        p.slots = {int(k): int(v) for k, v in data["slots"].items()}
+        p.next_node = int(data["next_node"])
+        return p
+
+
+def edge_seed(run_seed: int, generation: int, nodes: Sequence[int]) -> int:
+    """The evaluation seed of a hyperedge: fixed by run, generation and node set, never by
+    which worker plays it or when."""
+    key = [run_seed, generation, *sorted(nodes)]
+    return int(np.random.SeedSequence(key).generate_state(1, dtype=np.uint64)[0])
