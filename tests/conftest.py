@@ -25,3 +25,19 @@ def frozen_config() -> PursuitConfig:
 # sampler's 4-standard-error bound) cannot flake in CI.
 settings.register_profile("repeatable", derandomize=True)
 settings.load_profile("repeatable")
+
+
+@pytest.fixture(scope="module")
+def ray_session():
+    """One local Ray per test module (start-up and per-actor torch imports cost seconds)."""
+    import ray
+
+    ray.init(
+        address="local",
+        num_cpus=2,
+        include_dashboard=False,
+        namespace="hola_ray_tests",
+        log_to_driver=False,
+    )
+    yield ray
+    ray.shutdown()

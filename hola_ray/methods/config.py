@@ -185,8 +185,10 @@ class RunConfig:
         _require(
             self.method in METHODS, "method", f"one of {', '.join(sorted(METHODS))}", self.method
         )
-        _positive_int("run", self, "generations", minimum=0)
-        _positive_int("run", self, "seed", minimum=0)
+        for name in ("generations", "seed"):
+            value = getattr(self, name)
+            ok = isinstance(value, int) and not isinstance(value, bool) and value >= 0
+            _require(ok, name, "an integer >= 0", value)
         self.oracle.validate()
         self.pretrain.validate()
         self.population.validate(self.l)

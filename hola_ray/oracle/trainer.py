@@ -68,6 +68,10 @@ class _Pushed:
             runner.config.policy_mapping_fn.set_phi(phi, salt)
             for mid, state in weights.items():
                 runner.module[mid].set_state(state)
+            if getattr(runner, "env", None) is not None:
+                # Episodes under way keep the partners they started with: start new ones
+                # (one discarded vector step, no re-seeding) so the push takes effect now.
+                runner.sample(num_timesteps=1, force_reset=True)
 
         group.foreach_env_runner(apply, local_env_runner=local, remote_worker_ids=remote_ids)
 
@@ -149,6 +153,8 @@ class Oracle:
                 vf_loss_coeff=o.vf_coef,
                 entropy_coeff=o.entropy_coef,
                 clip_param=o.clip,
+            )
+            .learners(
                 learner_class=MEPLearner if self.mep else None,
                 learner_config_dict=learner_extra if self.mep else {},
             )

@@ -36,7 +36,8 @@ def export_from_rllib(
     """The export dict of an RLlib default PPO module's state (`get_state()` or learner weights).
 
     The encoder layers take `activation`; the head's hidden layers (if any) take it too and
-    its last layer is linear. Only the action mean is kept.
+    its last layer is linear and outputs the Gaussian's mean and log-std. The whole last
+    layer is kept (not only the mean's row) so the matmul, and its rounding, is RLlib's.
     """
     if activation not in _ACTIVATIONS:
         raise ValueError(f"activation must be one of {sorted(_ACTIVATIONS)}, got {activation!r}")
@@ -50,8 +51,6 @@ def export_from_rllib(
     out_dim = layers[-1][0].shape[0]
     if out_dim % 2:
         raise ValueError(f"the policy head must output mean and log-std, got {out_dim} outputs")
-    weight, bias = layers[-1]
-    layers[-1] = (weight[: out_dim // 2], bias[: out_dim // 2])
     return {
         "format": FORMAT,
         "weights": [torch.as_tensor(np.asarray(w, dtype=np.float32)) for w, _ in layers],

@@ -43,12 +43,14 @@ def evaluate_edges(
     workers: int,
     desc: str = "grapher",
     progress: bool = True,
+    on_result: Callable[[int, EdgeResult], None] | None = None,
 ) -> tuple[list[EdgeResult], GrapherStats]:
     """Evaluate every hyperedge; results in the order of `edges`.
 
     actors: node → its Member actor (every node of every edge must have an export in
         `exports_ref`, an object-store dict node → export).
     seed_of: hyperedge → its evaluation seed.
+    on_result: called with (edge index, result) as each evaluation comes back.
     """
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
@@ -91,6 +93,8 @@ def evaluate_edges(
                 queue.insert(0, k)
                 continue
             bar.update(episodes)
+            if on_result is not None:
+                on_result(k, results[k])
     wall = time.perf_counter() - start
     done = [r for r in results if r is not None]
     assert len(done) == len(edges)

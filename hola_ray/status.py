@@ -1,0 +1,144 @@
+"""Where a run stands: `python -m hola_ray.status RUN_DIR [--live] [--plot]`.
+
+Reads the run directory: last completed generation, population with slot, η, φ and node
+value, the last metrics row. With --live (or RAY_ADDRESS set) it also asks the running
+coordinator actor for its view, which includes the phase of the generation in progress.
+--plot writes RUN_DIR/progress.png: learner success and φ entropy over generations.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from hola_ray.population.rundir import RunDir
+
+_METRICS = (
+    "env_steps",
+    "learner_success",
+    "learner_return",
+    "learner_collision",
+    "learner_length",
+    "accepted",
+    "rank",
+    "phi_entropy",
+    "oracle_s",
+    "oracle_env_steps_per_s",
+    "grapher_s",
+    "population_success",
+)
+
+
+def disk_view(run_dir: Path) -> dict[str, Any]:
+    """The status of a run from its directory alone."""
+    run = RunDir(run_dir)
+    if not run.config.is_file():
+        raise FileNotFoundError(f"{run_dir} is not a run directory (no config.yaml)")
+    last = run.last_completed()
+    view: dict[str, Any] = {"run_dir": str(run_dir), "generation": last, "members": []}
+    if last is None:
+        return view
+    state = run.read_json(last, "state.json")
+    phi = run.read_json(last, "phi.json")
+    eta = run.read_json(last, "eta.json")
+    slots = state["population"]["slots"]
+    view["members"] = [
+        {"node": int(node), "slot": slot, "eta": eta.get(node), "phi": phi.get(node)}
+        for node, slot in slots.items()
+    ]
+    view["decision"] = state.get("decision")
+    view["last_metrics"] = run.read_json(last, "metrics.json")
+    return view
+
+
+def live_view(run_dir: Path) -> dict[str, Any] | None:
+    """The running coordinator's view, or None when no run of that name is live."""
+    import ray
+
+    from hola_ray.population.coordinator import NAMESPACE, coordinator_name
+
+    ray.init(address=os.environ.get("RAY_ADDRESS", "auto"), namespace=NAMESPACE,
+             log_to_driver=False)
+    try:
+        actor = ray.get_actor(coordinator_name(str(run_dir)), namespace=NAMESPACE)
+    except ValueError:
+        return None
+    return ray.get(actor.view.remote(), timeout=30)
+
+
+def format_view(view: dict[str, Any], source: str) -> str:
+    lines = [f"{source}: {view['run_dir']}", f"  last completed generation: {view['generation']}"]
+    if "phase" in view:
+        lines.append(f"  phase now: {view['phase']}")
+    if view.get("members"):
+        lines.append(f"  {'node':>5} {'slot':>4} {'eta':>6} {'phi':>6}")
+        for m in view["members"]:
+            eta = "-" if m["eta"] is None else f"{m['eta']:.3f}"
+            phi = "-" if m["phi"] is None else f"{m['phi']:.3f}"
+            lines.append(f"  {m['node']:>5} {m['slot']:>4} {eta:>6} {phi:>6}")
+    metrics = view.get("last_metrics") or {}
+    shown = {k: metrics[k] for k in _METRICS if k in metrics and metrics[k] != ""}
+    if shown:
+        lines.append("  last metrics: " + ", ".join(f"{k}={_fmt(v)}" for k, v in shown.items()))
+    return "\n".join(lines)
+
+
+def _fmt(value: Any) -> str:
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
+
+
+def plot_progress(run_dir: Path) -> Path:
+    """Learner success (± s.e.) and φ entropy per generation → RUN_DIR/progress.png."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = list(csv.DictReader((run_dir / "metrics.csv").open()))
+    gens = [int(r["generation"]) for r in rows if r.get("learner_success")]
+    success = [float(r["learner_success"]) for r in rows if r.get("learner_success")]
+    se = [float(r["learner_success_se"]) for r in rows if r.get("learner_success")]
+    entropy = [float(r["phi_entropy"]) for r in rows]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.2))
+    a.errorbar(gens, success, yerr=se, marker="o", capsize=3)
+    a.set(xlabel="generation", ylabel="learner success with population", ylim=(0, 1))
+    b.plot([int(r["generation"]) for r in rows], entropy, marker="o")
+    b.set(xlabel="generation", ylabel="φ entropy (nats)")
+    fig.tight_layout()
+    out = run_dir / "progress.png"
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m hola_ray.status", description=__doc__)
+    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("--live", action="store_true", help="also ask the running coordinator")
+    parser.add_argument("--json", action="store_true", help="print the view as JSON")
+    parser.add_argument("--plot", action="store_true", help="write RUN_DIR/progress.png")
+    args = parser.parse_args(argv)
+    try:
+        view = disk_view(args.run_dir)
+    except FileNotFoundError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(json.dumps(view, indent=1) if args.json else format_view(view, "on disk"))
+    if args.live or os.environ.get("RAY_ADDRESS"):
+        live = live_view(args.run_dir)
+        if live is None:
+            print("live: no coordinator of this run on the cluster (the run is not running)")
+        else:
+            print(json.dumps(live, indent=1) if args.json else format_view(live, "live"))
+    if args.plot and view["generation"] is not None:
+        print(f"wrote {plot_progress(args.run_dir)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,167 @@
+"""The Oracle in RLlib: partners follow φ, frozen partners act with the pushed weights, and
+the plain-torch export plays exactly like RLlib's module. One Ray session for the module."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from hola_ray.methods.config import RunConfig
+from hola_ray.oracle import LEARNER, Oracle, PartnerMapping, member_module
+from hola_ray.oracle.mep import mean_policy_logp
+from hola_ray.policies.learned import MLPPolicy, export_from_rllib, rescale_action
+
+CONFIG = RunConfig.from_dict(
+    {
+        "env": {"horizon": 60},
+        "oracle": {
+            "hidden": [32, 32],
+            "train_batch": 400,
+            "minibatch": 200,
+            "epochs": 1,
+            "envs_per_runner": 4,
+            "env_steps": 400,
+        },
+        "population": {"max_size": 3, "initial_size": 3, "top_m": 1},
+    }
+)
+OBS = np.random.default_rng(0).uniform(-1, 1, (64, CONFIG.env.obs_dim)).astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def oracle(ray_session):
+    o = Oracle(CONFIG)
+    o.train(400, progress=False)  # weights pushed after a first train() are the hard case
+    yield o
+    o.stop()
+
+
+def random_state(oracle, seed):
+    rng = np.random.default_rng(seed)
+    base = oracle.weights([LEARNER])[LEARNER]
+    return {k: (np.asarray(v) + rng.normal(0, 0.5, np.shape(v))).astype(np.float32)
+            for k, v in base.items()}
+
+
+@pytest.mark.parametrize("slot", [0, 1, 2])
+def test_one_hot_phi_maps_every_partner_slot_to_that_module(oracle, slot):
+    target = member_module(slot)
+    oracle.set_phi({target: 1.0}, salt=slot)
+
+    def sample_modules(runner):
+        """Module ids of every pursuer slot in fresh episodes, read off the episodes."""
+        episodes = runner.sample(num_timesteps=600, force_reset=True)
+        return [{aid: ep.module_for(aid) for aid in ep.agent_ids} for ep in episodes]
+
+    seen = oracle.algo.env_runner_group.foreach_env_runner(sample_modules, local_env_runner=False)
+    assert seen and all(seen)
+    learner_slots = set()
+    for runner_episodes in seen:
+        for mapping in runner_episodes:
+            assert sorted(mapping.values()) == sorted([LEARNER, target, target])
+            learner_slots |= {a for a, m in mapping.items() if m == LEARNER}
+    assert learner_slots == {"pursuer_0", "pursuer_1", "pursuer_2"}  # a random slot
+
+
+def test_mapping_is_consistent_within_an_episode_and_follows_phi():
+    m = PartnerMapping(3, {"a": 3.0, "b": 1.0}, learner=True, salt=5)
+    draws = [m.assignment(f"ep{k}") for k in range(4000)]
+    assert all(d.count(LEARNER) == 1 for d in draws)
+    assert draws[7] == m.assignment("ep7")
+    partners = [x for d in draws for x in d if x != LEARNER]
+    share_a = partners.count("a") / len(partners)
+    assert abs(share_a - 0.75) < 4 * np.sqrt(0.75 * 0.25 / len(partners))
+
+
+def test_frozen_partner_acts_with_the_pushed_weights(oracle):
+    before = MLPPolicy(CONFIG.env, export_from_rllib(oracle.weights([member_module(1)])[
+        member_module(1)]))
+    state = random_state(oracle, seed=1)
+    oracle.set_partners({member_module(1): state})
+    oracle.set_phi({member_module(1): 1.0})
+    expected = MLPPolicy(CONFIG.env, export_from_rllib(state))
+
+    def partner_means(runner):
+        """The action-distribution means the partner acted with, and their observations."""
+        obs, means = [], []
+        for ep in runner.sample(num_timesteps=200, force_reset=True):
+            for aid in ep.agent_ids:
+                if ep.module_for(aid) != member_module(1):
+                    continue
+                sa = ep.agent_episodes[aid]
+                n = len(sa)
+                obs.append(np.asarray(sa.get_observations(slice(0, n))))
+                inputs = np.asarray(sa.get_extra_model_outputs("action_dist_inputs", slice(0, n)))
+                means.append(inputs[:, 0])
+        return np.concatenate(obs), np.concatenate(means)
+
+    for obs, means in oracle.algo.env_runner_group.foreach_env_runner(
+        partner_means, local_env_runner=False
+    ):
+        assert len(means) > 50
+        # Float32 matmuls over a batch of 4 (the env runner) and of all rows (here) round
+        # differently in the last bits; the weights before the push differ by far more.
+        np.testing.assert_allclose(means, expected.mean(obs).numpy(), rtol=1e-5, atol=1e-5)
+        assert np.abs(means - before.mean(obs).numpy()).max() > 0.05
+
+
+def test_exported_learner_equals_rllib_forward_inference_and_rescaling(oracle):
+    from gymnasium.spaces import Box
+    from ray.rllib.utils.spaces.space_utils import unsquash_action
+
+    export = oracle.export(LEARNER)
+    policy = MLPPolicy(CONFIG.env, export)
+    state = oracle.weights([LEARNER])[LEARNER]
+
+    # In this process (same torch threads): bit for bit.
+    module = oracle.algo.learner_group._learner.module[LEARNER]
+    with torch.no_grad():
+        out = module.forward_inference({"obs": torch.from_numpy(OBS)})
+    space = Box(0.0, 1.0, (1,), np.float32)
+    mean = out["action_dist_inputs"][:, :1].numpy()
+    np.testing.assert_array_equal(
+        policy.act(OBS), np.stack([unsquash_action(a, space) for a in mean])[:, 0]
+    )
+
+    def rllib_actions(runner):
+        from ray.rllib.utils.spaces.space_utils import unsquash_action
+
+        runner.module[LEARNER].set_state(state)
+        with torch.no_grad():
+            out = runner.module[LEARNER].forward_inference({"obs": torch.from_numpy(OBS)})
+        mean = out["action_dist_inputs"][:, :1].numpy()
+        space = runner.env.envs[0].unwrapped.action_space["pursuer_0"]
+        return np.stack([unsquash_action(a, space) for a in mean])[:, 0]
+
+    # In an env runner (one torch thread, another summation order): to the last float32 bit.
+    for actions in oracle.algo.env_runner_group.foreach_env_runner(
+        rllib_actions, local_env_runner=False
+    ):
+        np.testing.assert_allclose(policy.act(OBS), actions, rtol=0, atol=2e-7)
+    assert 0.0 <= policy.act(OBS).min() and policy.act(OBS).max() <= 1.0
+
+
+def test_rescaling_matches_rllib_including_clipping():
+    from gymnasium.spaces import Box
+    from ray.rllib.utils.spaces.space_utils import unsquash_action
+
+    space = Box(0.0, 1.0, (1,), np.float32)
+    raw = np.array([-3.0, -1.0, -0.25, 0.0, 0.6, 1.0, 2.5], dtype=np.float32)
+    expected = np.array([unsquash_action(a[None], space)[0] for a in raw])
+    np.testing.assert_array_equal(rescale_action(raw), expected)
+    np.testing.assert_allclose(rescale_action(raw), [0, 0, 0.375, 0.5, 0.8, 1, 1])
+
+
+def test_mean_policy_logp_is_the_log_of_the_mixture_density(oracle):
+    modules = {m: oracle.algo.learner_group._learner.module[m] for m in oracle.members[:2]}
+    obs = torch.from_numpy(OBS[:8])
+    actions = torch.linspace(-1, 1, 8)[:, None]
+    got = mean_policy_logp(modules, list(modules), obs, actions)
+    dens = []
+    for module in modules.values():
+        inputs = module.forward_inference({"obs": obs})["action_dist_inputs"]
+        mean, log_std = inputs[:, 0], inputs[:, 1]
+        z = (actions[:, 0] - mean) / log_std.exp()
+        dens.append(torch.exp(-0.5 * z**2) / (log_std.exp() * np.sqrt(2 * np.pi)))
+    np.testing.assert_allclose(got.numpy(), torch.log((dens[0] + dens[1]) / 2).numpy(), rtol=1e-5)

@@ -1,0 +1,113 @@
+"""The coordinator's decisions and the run directory, without Ray."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from hola_ray.population.rundir import RunDir
+from hola_ray.population.state import EdgeResult, Population, edge_seed
+
+
+def edge(nodes, weight):
+    return EdgeResult(tuple(nodes), weight, 0.5, 0.0, 100.0, 4)
+
+
+def worked_example(max_size=4, top_m=3):
+    """Members 0..3 and candidate 4 with these hyperedge weights:
+
+    {0,1,2} 5, {0,1,3} 1, {0,2,3} 1, {1,2,3} 2 | {4,1,2} 9, {4,0,3} 0, {4,0,1} 3.
+    Best edges: 0→{0,1,2}, 1→{1,2,4}, 2→{1,2,4}, 3→{1,2,3}, 4→{1,2,4}.
+    In-degrees (other nodes whose best edge holds i): d0 = 0, d1 = 4, d2 = 4, d3 = 0,
+    d4 = 2 (from 1 and 2), so η = d/(5 − 1) = 0, 1, 1, 0, 0.5 and the candidate's
+    competition rank is 1 + 2 = 3.
+    """
+    p = Population(l=3, max_size=max_size, top_m=top_m, phi_kind="myerson", phi_shift=0.1)
+    p.add_initial(4)
+    p.record([edge((0, 1, 2), 5), edge((0, 1, 3), 1), edge((0, 2, 3), 1), edge((1, 2, 3), 2)])
+    assert p.propose() == 4
+    p.record([edge((4, 1, 2), 9), edge((4, 0, 3), 0), edge((4, 0, 1), 3)])
+    return p
+
+
+def test_accepted_candidate_replaces_the_lowest_eta_member_when_full():
+    p = worked_example(max_size=4, top_m=3)
+    d = p.decide()
+    assert d.accepted and d.rank == 3 and d.eta == pytest.approx(0.5)
+    # 0 and 3 tie at η = 0; the earlier inserted (0) makes room and its slot is reused.
+    assert d.replaced == 0 and d.slot == 0
+    assert p.slots == {1: 1, 2: 2, 3: 3, 4: 0}
+    assert 0 not in p.hyfog and p.candidate is None
+    assert p.members == [1, 2, 3, 4]
+
+
+def test_candidate_outside_top_m_is_removed():
+    p = worked_example(max_size=4, top_m=2)
+    d = p.decide()
+    assert not d.accepted and d.rank == 3 and d.replaced is None and d.slot is None
+    assert 4 not in p.hyfog and p.slots == {0: 0, 1: 1, 2: 2, 3: 3}
+    assert len(p.hyfog.edges) == 4  # the candidate's hyperedges went with it
+    assert p.propose() == 5  # ids are never reused
+
+
+def test_accepted_candidate_takes_a_free_slot_when_not_full():
+    p = worked_example(max_size=6, top_m=3)
+    d = p.decide()
+    assert d.accepted and d.replaced is None and d.slot == 4
+    assert p.members == [0, 1, 2, 3, 4]
+
+
+def test_phi_and_eta_leave_the_undecided_candidate_out():
+    p = worked_example()
+    assert set(p.phi()) == {0, 1, 2, 3} and sum(p.phi().values()) == pytest.approx(1.0)
+    # Among members only: best edges 0→{0,1,2}, 1→{0,1,2}, 2→{0,1,2}, 3→{1,2,3}:
+    # d0 = 2, d1 = 3, d2 = 3, d3 = 0 → η = d/3.
+    assert p.eta() == pytest.approx({0: 2 / 3, 1: 1.0, 2: 1.0, 3: 0.0})
+
+
+def test_candidate_edges_sample_distinct_sets_reproducibly():
+    p = Population(l=3, max_size=10, top_m=3, phi_kind="myerson", phi_shift=0.1)
+    p.add_initial(5)
+    c = p.propose()
+    every = p.candidate_edges(0, np.random.default_rng(0))
+    assert len(every) == 10 and all(e[0] == c for e in every)  # C(5, 2) = 10
+    some = p.candidate_edges(4, np.random.default_rng(7))
+    assert len(set(some)) == 4 and set(some) <= set(every)
+    assert some == p.candidate_edges(4, np.random.default_rng(7))
+    assert p.candidate_edges(50, np.random.default_rng(0)) == every
+
+
+def test_population_round_trip_and_no_persisting_mid_decision():
+    p = worked_example()
+    with pytest.raises(ValueError, match="candidate is undecided"):
+        p.to_dict()
+    p.decide()
+    q = Population.from_dict(p.to_dict())
+    assert q.to_dict() == p.to_dict() and q.hyfog == p.hyfog
+
+
+def test_edge_seed_depends_on_the_node_set_and_generation_only():
+    assert edge_seed(0, 3, (4, 1, 2)) == edge_seed(0, 3, (1, 2, 4))
+    assert edge_seed(0, 3, (1, 2, 4)) != edge_seed(0, 4, (1, 2, 4))
+    assert edge_seed(0, 3, (1, 2, 4)) != edge_seed(1, 3, (1, 2, 4))
+
+
+def test_generation_folders_are_all_or_nothing(tmp_path):
+    run = RunDir(tmp_path / "run")
+    run.create("method: hola\n")
+    run.write_generation(0, {"metrics.json": {"generation": 0, "a": 1}}, None)
+    run.write_generation(1, {"metrics.json": {"generation": 1, "a": 2, "b": 3}}, {"w": 1})
+    with pytest.raises(FileExistsError):
+        run.write_generation(1, {"metrics.json": {}}, None)
+    # A driver killed while writing generation 2 leaves only a temporary folder.
+    (run.generations / ".tmp_gen_0002_123").mkdir()
+    assert run.completed() == [0, 1] and run.last_completed() == 1
+    run.clean_partial()
+    assert not (run.generations / ".tmp_gen_0002_123").exists()
+    assert run.load_learner_state(1) == {"w": 1} and run.load_learner_state(0) is None
+    run.rewrite_metrics_csv()
+    rows = list(csv.DictReader(run.metrics_csv.open()))
+    assert [r["generation"] for r in rows] == ["0", "1"]
+    assert rows[0]["b"] == "" and rows[1]["b"] == "3"
