@@ -1,52 +1,126 @@
-"""The main job and the replay command run end to end on small settings."""
+"""The main job end to end: smoke run, SIGKILL and --resume, status, bad configs."""
 
 from __future__ import annotations
 
+import hashlib
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
+import ray
 import yaml
 
-from hola_ray import replay, run
-from hola_ray.env import ConfigError, PursuitConfig
+from hola_ray import run, status
+from hola_ray.env.config import PursuitConfig
+from hola_ray.evaluation.rollout import rollout
+from hola_ray.policies.learned import MLPPolicy
+from hola_ray.population.rundir import RunDir
 
 ROOT = Path(__file__).resolve().parent.parent
+SMOKE = ROOT / "configs" / "smoke.yaml"
 
 
-def test_default_yaml_is_the_embedded_default():
-    env, demo = run.load(ROOT / "configs" / "default.yaml")
-    assert env == PursuitConfig() and demo == run.DemoConfig()
+def main_job(*args: str, **kwargs) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "hola_ray.run", *args, "--no-dashboard", "--quiet"]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT, **kwargs)
 
 
-def test_run_demo_writes_replay_and_metrics(tmp_path, capsys):
-    config = tmp_path / "small.yaml"
-    config.write_text(
-        yaml.safe_dump(
-            {
-                "env": {"horizon": 200},
-                "demo": {"teams": [["vicsek", "greedy", "apf-a-3"]], "episodes": 8},
-            }
-        )
-    )
-    run.main(["--config", str(config), "--out", str(tmp_path / "out")])
-    printed = capsys.readouterr().out
-    assert "vicsek + greedy + apf-a-3" in printed and "success" in printed
-    for name in ("replay.gif", "trajectory.png", "config.yaml"):
-        assert (tmp_path / "out" / name).stat().st_size > 0
+def test_smoke_run_writes_the_whole_run_directory(tmp_path):
+    out = tmp_path / "smoke"
+    done = main_job("--config", str(SMOKE), "--out", str(out))
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "gen 1: learner success" in done.stdout
+    r = RunDir(out)
+    assert r.completed() == [0, 1]
+    for g in (0, 1):
+        for name in ("state.json", "hyfog.json", "phi.json", "eta.json", "metrics.json"):
+            assert (r.generation(g) / name).is_file()
+    assert (r.generation(1) / "learner.rllib.pt").is_file()
+    assert len(list(r.members.glob("node_*.pt"))) >= 6  # export + RLlib state per member
+    assert list(r.tensorboard.glob("events.out.tfevents.*"))
+    rows = r.metrics_rows()
+    assert [row["generation"] for row in rows] == [0, 1]
+    assert rows[1]["env_steps"] >= 2000 and 0.0 <= rows[1]["learner_success"] <= 1.0
+    # The exported learner plays without Ray or RLlib.
+    config = PursuitConfig.from_yaml(SMOKE)
+    learner = MLPPolicy.load(config, r.learner)
+    result = rollout(config, [learner] * 3, episodes=4)
+    assert result.episodes == 4
+    # Member checkpoints load the same way.
+    MLPPolicy.load(config, r.member_export(0))
+    # The status command reads it.
+    assert status.main([str(out), "--plot"]) == 0
+    assert (out / "progress.png").stat().st_size > 0
 
 
-def test_run_rejects_bad_config_before_work(tmp_path):
-    config = tmp_path / "bad.yaml"
-    config.write_text(yaml.safe_dump({"demo": {"teams": [["vicsek", "vicsek"]]}}))
-    with pytest.raises(ConfigError, match=r"demo.teams\[0\] must name 3"):
-        run.main(["--config", str(config), "--out", str(tmp_path / "never")])
-    assert not (tmp_path / "never").exists()
-    config.write_text(yaml.safe_dump({"trainer": {}}))
-    with pytest.raises(ConfigError, match="unknown top-level"):
-        run.load(config)
+def _digest(run_dir: RunDir, g: int) -> str:
+    h = hashlib.sha256()
+    for p in sorted(run_dir.generation(g).iterdir()):
+        h.update(p.name.encode() + p.read_bytes())
+    return h.hexdigest()
 
 
-def test_replay_writes_gif_and_png(tmp_path, capsys):
-    replay.main(["--team", "vicsek", "--seed", "2", "--evaders", "1", "--out", str(tmp_path)])
-    assert "wrote" in capsys.readouterr().out
-    assert len(list(tmp_path.glob("*.gif"))) == 1 and len(list(tmp_path.glob("*.png"))) == 1
+def test_sigkill_mid_generation_then_resume_loses_nothing(tmp_path):
+    config = yaml.safe_load(SMOKE.read_text())
+    config["generations"] = 4
+    config["oracle"]["env_steps"] = 6000
+    path = tmp_path / "resume.yaml"
+    path.write_text(yaml.safe_dump(config))
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "hola_ray.run", "--config", str(path), "--out", str(out),
+           "--no-dashboard", "--quiet"]
+    driver = subprocess.Popen(cmd, cwd=ROOT, start_new_session=True,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    r = RunDir(out)
+    deadline = time.monotonic() + 240
+    while 1 not in r.completed():
+        assert driver.poll() is None, "the run ended before it could be killed"
+        assert time.monotonic() < deadline, "generation 1 never completed"
+        time.sleep(0.1)
+    # SIGKILL the driver and the local Ray it started: nothing gets to clean up.
+    os.killpg(driver.pid, signal.SIGKILL)
+    driver.wait()
+    before = r.completed()
+    assert 1 in before and before[-1] < 4, before
+    digests = {g: _digest(r, g) for g in before}
+
+    done = main_job("--resume", str(out))
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert f"resuming after generation {before[-1]}" in done.stdout
+    assert r.completed() == [0, 1, 2, 3, 4]
+    assert {g: _digest(r, g) for g in before} == digests  # completed ones untouched
+    assert [row["generation"] for row in r.metrics_rows()] == [0, 1, 2, 3, 4]
+    lines = r.metrics_csv.read_text().strip().splitlines()
+    assert len(lines) == 1 + 5  # header + one row per generation
+    steps = [row["env_steps"] for row in r.metrics_rows()]
+    assert steps == sorted(steps) and steps[-1] >= 4 * 6000
+
+
+@pytest.mark.parametrize(
+    ("patch", "field"),
+    [
+        ({"method": "sp2"}, "method"),
+        ({"population": {"max_size": 2}}, "population.max_size"),
+        ({"oracle": {"env_steps": -1}}, "oracle.env_steps"),
+    ],
+)
+def test_bad_config_fails_before_ray_starts(tmp_path, capsys, patch, field):
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(patch))
+    assert run.main(["--config", str(path), "--out", str(tmp_path / "never")]) == 2
+    assert field in capsys.readouterr().err
+    assert not ray.is_initialized() and not (tmp_path / "never").exists()
+
+
+def test_a_fresh_run_refuses_a_used_run_directory(tmp_path, capsys):
+    r = RunDir(tmp_path / "used")
+    r.create("method: hola\n")
+    r.write_generation(0, {"metrics.json": {"generation": 0}}, None)
+    assert run.main(["--config", str(SMOKE), "--out", str(r.root)]) == 2
+    assert "--resume" in capsys.readouterr().err
+    assert run.main(["--resume", str(tmp_path / "nothing")]) == 2
+    assert not ray.is_initialized()

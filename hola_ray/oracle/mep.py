@@ -64,11 +64,33 @@ def mean_policy_logp(rl_module, members: Sequence[str], obs, actions) -> torch.T
     return torch.logsumexp(torch.stack(logps), dim=0) - math.log(len(members))
 
 
-class MEPLearner(PPOTorchLearner):
-    """PPO learner whose pipeline adds the population-entropy bonus before GAE.
+class OracleLearner(PPOTorchLearner):
+    """PPO learner of the Oracle and of MEP pre-training.
 
-    Reads `mep_alpha` and `mep_modules` from `learner_config_dict`.
+    - With `mep_alpha` > 0 in `learner_config_dict`, its pipeline adds the population-
+      entropy bonus to the rewards of the `mep_modules` before GAE.
+    - A train batch can hold no step of a trained module: when the learner collided early
+      in every vector env's episode, the sampled window holds only its frozen partners
+      playing on. RLlib's update then fails (no minibatch at all); this learner skips
+      that update instead and counts it as `num_skipped_updates`.
     """
+
+    def update(self, *args, training_data=None, **kwargs):
+        episodes = getattr(training_data, "episodes", None) or kwargs.get("episodes")
+        if episodes is not None and not any(self._trains_on(ep) for ep in episodes):
+            self.metrics.log_value("num_skipped_updates", 1, reduce="sum")
+            return self.metrics.reduce()
+        return super().update(*args, training_data=training_data, **kwargs)
+
+    def _trains_on(self, episode) -> bool:
+        """Whether a (multi-agent) episode chunk holds a step of a module being trained."""
+        agents = getattr(episode, "agent_episodes", None)
+        if agents is None:
+            return len(episode) > 0
+        return any(
+            len(sa) > 0 and self.should_module_be_updated(episode.module_for(aid))
+            for aid, sa in agents.items()
+        )
 
     def build(self) -> None:
         super().build()

@@ -29,7 +29,7 @@ from hola_ray.env.config import PursuitConfig
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.methods.config import RunConfig
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
-from hola_ray.oracle.mep import MEPLearner
+from hola_ray.oracle.mep import OracleLearner
 from hola_ray.policies.learned import export_from_rllib
 
 ENV_NAME = "hola_ray_pursuit"
@@ -155,7 +155,7 @@ class Oracle:
                 clip_param=o.clip,
             )
             .learners(
-                learner_class=MEPLearner if self.mep else None,
+                learner_class=OracleLearner,
                 learner_config_dict=learner_extra if self.mep else {},
             )
             .callbacks(_RepushOnRecreate)

@@ -22,7 +22,8 @@ def evaluate_team(
     """Play `episodes` episodes of the l policies of `team` on the batched core.
 
     Each episode seats the team in a random order over the pursuer slots (drawn from
-    `seed`), so no member is tied to a slot. Returns the hyperedge's measured weight.
+    `seed`), so no member is tied to a slot; the team is a set, so the order it is listed
+    in does not matter. Returns the hyperedge's measured weight.
     """
     from hola_ray.env.config import PursuitConfig
     from hola_ray.evaluation.rollout import rollout
@@ -31,7 +32,8 @@ def evaluate_team(
     config = PursuitConfig.from_dict(env_config)
     if len(team) != config.n_pursuers:
         raise ValueError(f"a team holds {config.n_pursuers} members, got {list(team)}")
-    policies = [MLPPolicy(config, exports[node], name=f"node_{node}") for node in team]
+    seated = sorted(team)
+    policies = [MLPPolicy(config, exports[node], name=f"node_{node}") for node in seated]
     rng = np.random.default_rng(seed)
     assignment = np.stack([rng.permutation(len(team)) for _ in range(episodes)])
     result = rollout(config, policies, episodes, assignment=assignment, seed=seed)

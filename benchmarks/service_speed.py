@@ -1,0 +1,139 @@
+"""Speed of the training service's parts on this machine, each against a peer in the same run.
+
+    python benchmarks/service_speed.py [--quick]
+
+1. Grapher: hyperedge-evaluation episodes/s with 1 and 2 workers (member actors side by
+   side) on the same hyperedges and seeds → the speedup (target ≥ 1.8× on 2 CPUs).
+2. Oracle: environment steps/s sampled by RLlib's env runner (sampling time only) and
+   overall (sampling + PPO update), with the default config's PPO and the paper's
+   (batch 1024, minibatch 256, 20 epochs, 256×256) → the paper's 1e6-step oracle in minutes.
+3. One generation of the default config end to end, broken into pre-train, oracle,
+   grapher and coordinator wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import itertools
+import tempfile
+import time
+
+import ray
+import torch
+
+from hola_ray.methods.config import RunConfig
+from hola_ray.oracle import Oracle
+from hola_ray.policies.learned import FORMAT
+from hola_ray.population.grapher import evaluate_edges
+from hola_ray.population.member import MemberPool
+from hola_ray.population.state import edge_seed
+from hola_ray.run import DEFAULT
+
+
+def random_export(obs_dim: int, hidden: tuple[int, ...], seed: int) -> dict:
+    g = torch.Generator().manual_seed(seed)
+    sizes = [obs_dim, *hidden, 2]
+    shapes = list(itertools.pairwise(sizes))
+    return {
+        "format": FORMAT,
+        "weights": [torch.randn(o, i, generator=g) / i**0.5 for i, o in shapes],
+        "biases": [torch.zeros(o) for _, o in shapes],
+        "activation": "tanh",
+        "low": 0.0,
+        "high": 1.0,
+    }
+
+
+def grapher_speed(config: RunConfig, members: int, episodes: int) -> dict[str, float]:
+    env = config.env
+    exports = {n: random_export(env.obs_dim, config.oracle.hidden, n) for n in range(members)}
+    edges = list(itertools.combinations(range(members), config.l))
+    out = {}
+    for workers in (1, 2):
+        pool = MemberPool(env.to_dict())
+        actors = pool.ensure(exports)
+        ref = ray.put(exports)
+        evaluate_edges(edges[:2], actors, ref, 2, lambda e: 0, workers, progress=False)  # warm
+        results, stats = evaluate_edges(
+            edges, actors, ref, episodes, lambda e: edge_seed(0, 0, e), workers, progress=False
+        )
+        pool.shutdown()
+        steps = sum(r.length * r.episodes for r in results)
+        out[f"grapher_episodes_per_s_{workers}w"] = stats.episodes_per_s
+        out[f"grapher_env_steps_per_s_{workers}w"] = steps / stats.wall_s
+        print(
+            f"  grapher, {workers} worker(s): {stats.edges} hyperedges × {episodes} episodes "
+            f"in {stats.wall_s:.1f}s = {stats.episodes_per_s:.1f} episodes/s "
+            f"({steps / stats.wall_s:,.0f} env steps/s)"
+        )
+    out["grapher_speedup_2w_over_1w"] = (
+        out["grapher_episodes_per_s_2w"] / out["grapher_episodes_per_s_1w"]
+    )
+    print(f"  → speedup 2 workers / 1 worker: {out['grapher_speedup_2w_over_1w']:.2f}×")
+    return out
+
+
+def oracle_speed(config: RunConfig, label: str, steps: int) -> dict[str, float]:
+    oracle = Oracle(config)
+    try:
+        oracle.train(config.oracle.train_batch, progress=False)  # warm-up iteration
+        s = oracle.train(steps, progress=False)
+    finally:
+        oracle.stop()
+    minutes = 1e6 / s.env_steps_per_s / 60
+    print(
+        f"  oracle [{label}]: {s.env_steps:,} env steps in {s.wall_s:.1f}s: sampled "
+        f"{s.sampled_steps_per_s:,.0f} steps/s (sampling {s.sample_s:.1f}s), overall "
+        f"{s.env_steps_per_s:,.0f} steps/s (PPO update {s.learn_s:.1f}s) → 1e6 steps in "
+        f"{minutes:.1f} min"
+    )
+    return {
+        f"oracle_sampled_steps_per_s_{label}": s.sampled_steps_per_s,
+        f"oracle_env_steps_per_s_{label}": s.env_steps_per_s,
+        f"oracle_1e6_minutes_{label}": minutes,
+    }
+
+
+def generation_breakdown(config: RunConfig) -> dict[str, float]:
+    from hola_ray.methods.hola import Trainer
+
+    with tempfile.TemporaryDirectory() as tmp:
+        rows = Trainer(dataclasses.replace(config, generations=1), tmp, progress=False).fit()
+    pre, gen = rows[0], rows[1]
+    parts = {
+        "pretrain_s": pre["pretrain_s"],
+        "g0_grapher_s": pre["grapher_s"],
+        "oracle_s": gen["oracle_s"],
+        "grapher_s": gen["grapher_s"],
+        "coordinator_s": gen["coordinator_s"] + gen["persist_s"],
+    }
+    print("  one generation: " + ", ".join(f"{k} {v:.1f}" for k, v in parts.items()))
+    return parts
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="smaller measurements")
+    args = parser.parse_args()
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
+    default = RunConfig.from_dict(DEFAULT)
+    paper = RunConfig.from_dict({**DEFAULT, "oracle": {"envs_per_runner": 16}})
+    steps = 10_000 if args.quick else 40_000
+    print("Grapher (default networks, full-length episodes):")
+    grapher_speed(default, members=5, episodes=8 if args.quick else 16)
+    print("Oracle:")
+    oracle_speed(default, "default", steps)
+    oracle_speed(paper, "paper", steps // 2 if args.quick else steps)
+    print("Generation (default config, shortened budgets):")
+    short = dataclasses.replace(
+        default,
+        oracle=dataclasses.replace(default.oracle, env_steps=steps),
+        pretrain=dataclasses.replace(default.pretrain, env_steps=steps),
+    )
+    generation_breakdown(short)
+    ray.shutdown()
+
+
+if __name__ == "__main__":
+    main()
