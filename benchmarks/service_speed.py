@@ -17,7 +17,6 @@ import argparse
 import dataclasses
 import itertools
 import tempfile
-import time
 
 import ray
 import torch

@@ -22,18 +22,19 @@ from hola_ray.methods.config import RunConfig
 
 DEFAULT: dict[str, Any] = {
     "method": "hola",
-    "generations": 6,
+    "generations": 8,
     "seed": 0,
-    "env": {"n_pursuers": 3, "n_evaders": 2},
+    "env": {"n_pursuers": 3, "n_evaders": 1},
     "oracle": {
-        "env_steps": 50_000,
+        "env_steps": 100_000,
         "train_batch": 2048,
-        "minibatch": 512,
-        "epochs": 4,
+        "minibatch": 256,
+        "epochs": 10,
+        "lr": 5e-4,
         "hidden": [64, 64],
         "envs_per_runner": 16,
     },
-    "pretrain": {"env_steps": 50_000, "alpha": 0.05},
+    "pretrain": {"env_steps": 100_000, "alpha": 0.05},
     "population": {"max_size": 6, "initial_size": 4, "top_m": 3},
     "grapher": {"episodes_per_edge": 16, "workers": 2},
 }

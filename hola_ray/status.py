@@ -62,8 +62,9 @@ def live_view(run_dir: Path) -> dict[str, Any] | None:
 
     from hola_ray.population.coordinator import NAMESPACE, coordinator_name
 
-    ray.init(address=os.environ.get("RAY_ADDRESS", "auto"), namespace=NAMESPACE,
-             log_to_driver=False)
+    ray.init(
+        address=os.environ.get("RAY_ADDRESS", "auto"), namespace=NAMESPACE, log_to_driver=False
+    )
     try:
         actor = ray.get_actor(coordinator_name(str(run_dir)), namespace=NAMESPACE)
     except ValueError:

@@ -71,10 +71,20 @@ def test_sigkill_mid_generation_then_resume_loses_nothing(tmp_path):
     path = tmp_path / "resume.yaml"
     path.write_text(yaml.safe_dump(config))
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "hola_ray.run", "--config", str(path), "--out", str(out),
-           "--no-dashboard", "--quiet"]
-    driver = subprocess.Popen(cmd, cwd=ROOT, start_new_session=True,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    cmd = [
+        sys.executable,
+        "-m",
+        "hola_ray.run",
+        "--config",
+        str(path),
+        "--out",
+        str(out),
+        "--no-dashboard",
+        "--quiet",
+    ]
+    driver = subprocess.Popen(
+        cmd, cwd=ROOT, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     r = RunDir(out)
     deadline = time.monotonic() + 240
     while 1 not in r.completed():

@@ -97,6 +97,8 @@ class MLPPolicy(Policy):
     @torch.no_grad()
     def mean(self, obs: np.ndarray | torch.Tensor) -> torch.Tensor:
         """The actor's Gaussian mean [N] in RLlib's normalised [−1, 1] action space."""
+        if isinstance(obs, np.ndarray) and not obs.flags.writeable:
+            obs = obs.copy()  # torch cannot wrap a read-only array
         x = torch.as_tensor(obs, dtype=torch.float32)
         last = len(self.weights) - 1
         for k, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):

@@ -40,8 +40,10 @@ def oracle(ray_session):
 def random_state(oracle, seed):
     rng = np.random.default_rng(seed)
     base = oracle.weights([LEARNER])[LEARNER]
-    return {k: (np.asarray(v) + rng.normal(0, 0.5, np.shape(v))).astype(np.float32)
-            for k, v in base.items()}
+    return {
+        k: (np.asarray(v) + rng.normal(0, 0.5, np.shape(v))).astype(np.float32)
+        for k, v in base.items()
+    }
 
 
 @pytest.mark.parametrize("slot", [0, 1, 2])
@@ -75,8 +77,9 @@ def test_mapping_is_consistent_within_an_episode_and_follows_phi():
 
 
 def test_frozen_partner_acts_with_the_pushed_weights(oracle):
-    before = MLPPolicy(CONFIG.env, export_from_rllib(oracle.weights([member_module(1)])[
-        member_module(1)]))
+    before = MLPPolicy(
+        CONFIG.env, export_from_rllib(oracle.weights([member_module(1)])[member_module(1)])
+    )
     state = random_state(oracle, seed=1)
     oracle.set_partners({member_module(1): state})
     oracle.set_phi({member_module(1): 1.0})

@@ -36,7 +36,7 @@ def test_yaml_round_trip(name):
     ("patch", "message"),
     [
         ({"method": "hola_x"}, r"method must be one of hola, hola_r"),
-        ({"population": {"max_size": 2}}, r"population.max_size \(the hypergraph size\) must be >= l"),
+        ({"population": {"max_size": 2}}, r"population.max_size \(the hypergraph size\)"),
         ({"oracle": {"env_steps": -5}}, r"oracle.env_steps must be an integer >= 1"),
         ({"pretrain": {"env_steps": 0}}, r"pretrain.env_steps must be an integer >= 1"),
         ({"oracle": {"minibatch": 4096}}, r"oracle.minibatch must be <= oracle.train_batch"),
