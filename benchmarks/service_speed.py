@@ -17,6 +17,7 @@ import argparse
 import dataclasses
 import itertools
 import tempfile
+from pathlib import Path
 
 import ray
 import torch
@@ -117,7 +118,7 @@ def main() -> None:
     args = parser.parse_args()
     ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     default = RunConfig.from_dict(DEFAULT)
-    paper = RunConfig.from_dict({**DEFAULT, "oracle": {"envs_per_runner": 16}})
+    paper = RunConfig.from_yaml(Path(__file__).resolve().parents[1] / "configs" / "paper.yaml")
     steps = 10_000 if args.quick else 40_000
     print("Grapher (default networks, full-length episodes):")
     grapher_speed(default, members=5, episodes=8 if args.quick else 16)
