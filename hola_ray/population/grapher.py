@@ -19,7 +19,8 @@ from tqdm.auto import tqdm
 from hola_ray.population.state import EdgeResult
 
 MAX_ATTEMPTS = 4
-"""Tries per hyperedge before the Grapher gives up."""
+"""Failures per hyperedge, beyond those explained by a member actor newly found dead,
+before the Grapher gives up."""
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,7 @@ def evaluate_edges(
         raise ValueError("no member actors to evaluate on")
     results: list[EdgeResult | None] = [None] * len(edges)
     attempts = [0] * len(edges)
+    failures = [0] * len(edges)
     busy = dict.fromkeys(actors, 0)
     dead: set[int] = set()
     pending: dict[ray.ObjectRef, tuple[int, int]] = {}  # ref → (edge index, actor node)
@@ -86,8 +88,12 @@ def evaluate_edges(
             try:
                 results[k] = ray.get(ready[0])
             except RayActorError as err:
+                # A newly found dead actor is not the hyperedge's fault (each actor dies
+                # once, so this is bounded); repeated failures on known-dead ones count.
+                if node in dead:
+                    failures[k] += 1
                 dead.add(node)
-                if attempts[k] >= MAX_ATTEMPTS:
+                if failures[k] >= MAX_ATTEMPTS:
                     raise RuntimeError(f"hyperedge {edges[k]} failed {attempts[k]} times") from err
                 retries += 1
                 queue.insert(0, k)
