@@ -26,7 +26,8 @@ class ConfigError(ValueError):
     """A configuration value is missing, unknown or outside its allowed range."""
 
 
-def _require(ok: bool, name: str, allowed: str, value: Any) -> None:
+def require(ok: bool, name: str, allowed: str, value: Any) -> None:
+    """Raise `ConfigError` naming the field and its allowed range unless `ok`."""
     if not ok:
         raise ConfigError(f"{name} must be {allowed}, got {value!r}")
 
@@ -74,7 +75,7 @@ class EvaderConfig:
             "slip_range",
         ):
             value = getattr(self, name)
-            _require(math.isfinite(value) and value > 0, f"evader.{name}", "> 0", value)
+            require(math.isfinite(value) and value > 0, f"evader.{name}", "> 0", value)
         for name in (
             "repulsion_gain",
             "repulsion_offset",
@@ -85,22 +86,22 @@ class EvaderConfig:
             "wander_clearance",
         ):
             value = getattr(self, name)
-            _require(math.isfinite(value) and value >= 0, f"evader.{name}", ">= 0", value)
-        _require(
+            require(math.isfinite(value) and value >= 0, f"evader.{name}", ">= 0", value)
+        require(
             0 <= self.panic_threshold <= 1,
             "evader.panic_threshold",
             "in [0, 1]",
             self.panic_threshold,
         )
-        _require(self.wander_hold_min >= 1, "evader.wander_hold_min", ">= 1", self.wander_hold_min)
-        _require(
+        require(self.wander_hold_min >= 1, "evader.wander_hold_min", ">= 1", self.wander_hold_min)
+        require(
             self.wander_hold_max >= self.wander_hold_min,
             "evader.wander_hold_max",
             f">= wander_hold_min ({self.wander_hold_min})",
             self.wander_hold_max,
         )
-        _require(0 < self.max_turn <= math.pi, "evader.max_turn", "in (0, π]", self.max_turn)
-        _require(
+        require(0 < self.max_turn <= math.pi, "evader.max_turn", "in (0, π]", self.max_turn)
+        require(
             self.repulsion_offset < self.repulsion_range,
             "evader.repulsion_offset",
             f"< repulsion_range ({self.repulsion_range})",
@@ -180,7 +181,7 @@ class PursuitConfig:
         )
         for name in positive:
             value = getattr(self, name)
-            _require(
+            require(
                 isinstance(value, int | float) and math.isfinite(value) and value > 0,
                 name,
                 "a finite number > 0",
@@ -195,15 +196,15 @@ class PursuitConfig:
             "unobserved_distance",
         ):
             value = getattr(self, name)
-            _require(
+            require(
                 isinstance(value, int | float) and math.isfinite(value) and value >= 0,
                 name,
                 "a finite number >= 0",
                 value,
             )
-        _require(self.max_turn <= math.pi, "max_turn", "in (0, π]", self.max_turn)
+        require(self.max_turn <= math.pi, "max_turn", "in (0, π]", self.max_turn)
         diagonal = math.hypot(self.arena_width, self.arena_height) / self.obs_distance_scale
-        _require(
+        require(
             self.unobserved_distance > diagonal,
             "unobserved_distance",
             f"> the largest observable distance reading ({diagonal:.3f}), so it is unambiguous",
@@ -211,19 +212,19 @@ class PursuitConfig:
         )
         for name in ("n_pursuers", "n_evaders", "horizon"):
             value = getattr(self, name)
-            _require(isinstance(value, int) and value >= 1, name, "an integer >= 1", value)
+            require(isinstance(value, int) and value >= 1, name, "an integer >= 1", value)
         for i, rect in enumerate(self.obstacles):
             name = f"obstacles[{i}]"
-            _require(len(rect) == 4, name, "(centre_x, centre_y, width, height)", rect)
+            require(len(rect) == 4, name, "(centre_x, centre_y, width, height)", rect)
             cx, cy, w, h = rect
-            _require(w > 0 and h > 0, name, "of positive width and height", rect)
+            require(w > 0 and h > 0, name, "of positive width and height", rect)
             inside = (
                 cx - w / 2 >= 0
                 and cx + w / 2 <= self.arena_width
                 and cy - h / 2 >= 0
                 and cy + h / 2 <= self.arena_height
             )
-            _require(
+            require(
                 inside,
                 name,
                 f"inside the arena [0, {self.arena_width}] × [0, {self.arena_height}]",
@@ -231,10 +232,10 @@ class PursuitConfig:
             )
         for name in ("pursuer_spawn", "evader_spawn"):
             region = getattr(self, name)
-            _require(len(region) == 4, name, "(x_min, x_max, y_min, y_max)", region)
+            require(len(region) == 4, name, "(x_min, x_max, y_min, y_max)", region)
             x0, x1, y0, y1 = region
             inside = 0 <= x0 <= x1 <= self.arena_width and 0 <= y0 <= y1 <= self.arena_height
-            _require(
+            require(
                 inside,
                 name,
                 f"an ordered region inside [0, {self.arena_width}] × [0, {self.arena_height}]",
@@ -247,7 +248,7 @@ class PursuitConfig:
             capacity = (
                 (math.floor((x1 - x0) / s) + 1) * (math.floor((y1 - y0) / s) + 1) if s else 10**9
             )
-            _require(
+            require(
                 capacity >= 2 * count,
                 name,
                 f"large enough to place {count} drones {s} m apart with room to spare",
@@ -276,12 +277,12 @@ class PursuitConfig:
         """Build from a plain mapping (YAML); unknown keys are an error."""
         if not isinstance(data, Mapping):
             raise ConfigError(f"a pursuit config must be a mapping, got {type(data).__name__}")
-        kwargs = _consume(cls, data, "")
+        kwargs = consume_fields(cls, data, "")
         evader = kwargs.pop("evader", None)
         if evader is not None:
             if not isinstance(evader, Mapping):
                 raise ConfigError(f"evader must be a mapping, got {evader!r}")
-            kwargs["evader"] = EvaderConfig(**_consume(EvaderConfig, evader, "evader."))
+            kwargs["evader"] = EvaderConfig(**consume_fields(EvaderConfig, evader, "evader."))
         for key in ("obstacles",):
             if key in kwargs:
                 kwargs[key] = tuple(tuple(float(v) for v in rect) for rect in kwargs[key])
@@ -307,7 +308,8 @@ class PursuitConfig:
         return out
 
 
-def _consume(cls: type, data: Mapping[str, Any], prefix: str) -> dict[str, Any]:
+def consume_fields(cls: type, data: Mapping[str, Any], prefix: str) -> dict[str, Any]:
+    """`data` as keyword arguments of the dataclass `cls`; unknown keys are an error."""
     names = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - names)
     if unknown:

@@ -17,28 +17,23 @@ from typing import Any
 
 import yaml
 
-from hola_ray.env.config import ConfigError, PursuitConfig
+from hola_ray.env.config import ConfigError, PursuitConfig, consume_fields, require
 
 METHODS = {"hola": "myerson", "hola_r": "mean_reward"}
 """Method name → the node value whose shifted inverse is φ (SPEC §4)."""
-
-
-def _require(ok: bool, name: str, allowed: str, value: Any) -> None:
-    if not ok:
-        raise ConfigError(f"{name} must be {allowed}, got {value!r}")
 
 
 def _positive_int(section: str, obj: Any, *names: str, minimum: int = 1) -> None:
     for name in names:
         value = getattr(obj, name)
         ok = isinstance(value, int) and not isinstance(value, bool) and value >= minimum
-        _require(ok, f"{section}.{name}", f"an integer >= {minimum}", value)
+        require(ok, f"{section}.{name}", f"an integer >= {minimum}", value)
 
 
 def _finite(section: str, obj: Any, name: str, low: float, high: float, allowed: str) -> None:
     value = getattr(obj, name)
     ok = isinstance(value, int | float) and math.isfinite(value) and low <= value <= high
-    _require(ok, f"{section}.{name}", allowed, value)
+    require(ok, f"{section}.{name}", allowed, value)
 
 
 @dataclass(frozen=True)
@@ -77,7 +72,7 @@ class OracleConfig:
         _positive_int(s, self, "env_steps", "train_batch", "minibatch", "epochs")
         _positive_int(s, self, "envs_per_runner")
         _positive_int(s, self, "env_runners", minimum=0)
-        _require(
+        require(
             self.minibatch <= self.train_batch,
             "oracle.minibatch",
             f"<= oracle.train_batch ({self.train_batch})",
@@ -90,7 +85,7 @@ class OracleConfig:
         _finite(s, self, "entropy_coef", 0.0, 1.0, "in [0, 1]")
         _finite(s, self, "clip", 1e-3, 1.0, "in [0.001, 1]")
         ok = len(self.hidden) >= 1 and all(isinstance(h, int) and h >= 1 for h in self.hidden)
-        _require(ok, "oracle.hidden", "a non-empty list of positive layer widths", self.hidden)
+        require(ok, "oracle.hidden", "a non-empty list of positive layer widths", self.hidden)
 
 
 @dataclass(frozen=True)
@@ -123,19 +118,19 @@ class PopulationConfig:
     def validate(self, l: int) -> None:  # noqa: E741 - the paper's l
         s = "population"
         _positive_int(s, self, "max_size", "initial_size", "top_m")
-        _require(
+        require(
             self.max_size >= l,
             "population.max_size (the hypergraph size)",
             f">= l = env.n_pursuers = {l}",
             self.max_size,
         )
-        _require(
+        require(
             l <= self.initial_size <= self.max_size,
             "population.initial_size",
             f"in [l = {l}, population.max_size = {self.max_size}]",
             self.initial_size,
         )
-        _require(
+        require(
             self.top_m <= self.max_size,
             "population.top_m",
             f"<= population.max_size ({self.max_size})",
@@ -182,13 +177,13 @@ class RunConfig:
     """hyperedge evaluation"""
 
     def __post_init__(self) -> None:
-        _require(
+        require(
             self.method in METHODS, "method", f"one of {', '.join(sorted(METHODS))}", self.method
         )
         for name in ("generations", "seed"):
             value = getattr(self, name)
             ok = isinstance(value, int) and not isinstance(value, bool) and value >= 0
-            _require(ok, name, "an integer >= 0", value)
+            require(ok, name, "an integer >= 0", value)
         self.oracle.validate()
         self.pretrain.validate()
         self.population.validate(self.l)
@@ -254,11 +249,4 @@ class RunConfig:
 def _fields(cls: type, data: Any, prefix: str) -> dict[str, Any]:
     if not isinstance(data, Mapping):
         raise ConfigError(f"{prefix.rstrip('.') or 'config'} must be a mapping, got {data!r}")
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(data) - names)
-    if unknown:
-        raise ConfigError(
-            f"unknown key(s) {', '.join(prefix + k for k in unknown)}; "
-            f"allowed: {', '.join(sorted(names))}"
-        )
-    return dict(data)
+    return consume_fields(cls, data, prefix)

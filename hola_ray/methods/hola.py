@@ -88,7 +88,7 @@ class Trainer:
             states = mep.weights(mep.members)
         finally:
             mep.stop()
-        states_list = [states[m] for m in member_ids(c.population.initial_size)]
+        states_list = [states[m] for m in mep.members]
         exports = [export_from_rllib(s) for s in states_list]
         pretrain_s = time.perf_counter() - start
         ray.get(self.coord.init_population.remote(exports, states_list))
@@ -204,10 +204,6 @@ class Trainer:
 
     def _say(self, text: str) -> None:
         print(text, flush=True)
-
-
-def member_ids(count: int) -> list[str]:
-    return [member_module(s) for s in range(count)]
 
 
 def _edge_summary(prefix: str, results: list[EdgeResult]) -> dict[str, float]:

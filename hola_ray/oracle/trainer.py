@@ -124,8 +124,11 @@ class Oracle:
 
     def _algorithm_config(self, trainable: Sequence[str], seed: int | None) -> PPOConfig:
         o, env = self.config.oracle, self.config.env
-        model = {"fcnet_hiddens": list(o.hidden), "fcnet_activation": "tanh"}
-        model["vf_share_layers"] = False
+        model = {
+            "fcnet_hiddens": list(o.hidden),
+            "fcnet_activation": "tanh",
+            "vf_share_layers": False,
+        }
         specs = {m: RLModuleSpec(model_config=model) for m in self.modules}
         learner_extra = {"mep_alpha": self.config.pretrain.alpha, "mep_modules": self.members}
         return (

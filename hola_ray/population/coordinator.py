@@ -105,23 +105,15 @@ class Coordinator:
 
     def exports(self, nodes: Sequence[int]) -> dict[int, dict[str, Any]]:
         """Plain-torch exports of nodes (pending ones from memory, members from disk)."""
-        out = {}
-        for node in nodes:
-            if node in self._pending_exports:
-                out[node] = self._pending_exports[node][0]
-            else:
-                out[node] = self.run.load_member_export(node)
-        return out
+        return self._weights(nodes, 0, self.run.load_member_export)
 
     def member_states(self, nodes: Sequence[int]) -> dict[int, dict[str, Any]]:
         """RLlib module states of members, to seat them as frozen partners."""
-        out = {}
-        for node in nodes:
-            if node in self._pending_exports:
-                out[node] = self._pending_exports[node][1]
-            else:
-                out[node] = self.run.load_member_state(node)
-        return out
+        return self._weights(nodes, 1, self.run.load_member_state)
+
+    def _weights(self, nodes, which: int, load) -> dict[int, dict[str, Any]]:
+        pending = self._pending_exports
+        return {v: pending[v][which] if v in pending else load(v) for v in nodes}
 
     def record(self, results: Sequence[EdgeResult]) -> None:
         self.population.record(results)
