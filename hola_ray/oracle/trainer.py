@@ -28,6 +28,7 @@ from tqdm.auto import tqdm
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.methods.config import RunConfig
+from hola_ray.oracle.frozen import FrozenPartnerModule
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.mep import OracleLearner
 from hola_ray.policies.learned import export_from_rllib
@@ -129,7 +130,14 @@ class Oracle:
             "fcnet_activation": "tanh",
             "vf_share_layers": False,
         }
-        specs = {m: RLModuleSpec(model_config=model) for m in self.modules}
+        # Trained modules explore; frozen partners play their mean (oracle/frozen.py).
+        frozen = set(self.modules) - set(trainable)
+        specs = {
+            m: RLModuleSpec(
+                module_class=FrozenPartnerModule if m in frozen else None, model_config=model
+            )
+            for m in self.modules
+        }
         learner_extra = {"mep_alpha": self.config.pretrain.alpha, "mep_modules": self.members}
         return (
             PPOConfig()

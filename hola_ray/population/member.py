@@ -62,6 +62,12 @@ class Member:
         self.node = node
         self.export = dict(export)
         self.env_config = dict(env_config)
+        # Pay the simulator's compilation (or cache load) now, while the pool starts,
+        # rather than inside the first hyperedge this member is given.
+        from hola_ray.env.config import PursuitConfig
+
+        team = [node] * PursuitConfig.from_dict(self.env_config).n_pursuers
+        evaluate_team(self.env_config, team, {node: self.export}, 1, 0)
 
     def ping(self) -> int:
         return self.node

@@ -85,9 +85,10 @@ def test_frozen_partner_acts_with_the_pushed_weights(oracle):
     oracle.set_phi({member_module(1): 1.0})
     expected = MLPPolicy(CONFIG.env, export_from_rllib(state))
 
-    def partner_means(runner):
-        """The action-distribution means the partner acted with, and their observations."""
-        obs, means = [], []
+    def partner_actions(runner):
+        """The partner's observations, action-distribution means and actions (in RLlib's
+        [−1, 1] action space) in freshly sampled episodes."""
+        obs, means, actions = [], [], []
         for ep in runner.sample(num_timesteps=200, force_reset=True):
             for aid in ep.agent_ids:
                 if ep.module_for(aid) != member_module(1):
@@ -97,16 +98,40 @@ def test_frozen_partner_acts_with_the_pushed_weights(oracle):
                 obs.append(np.asarray(sa.get_observations(slice(0, n))))
                 inputs = np.asarray(sa.get_extra_model_outputs("action_dist_inputs", slice(0, n)))
                 means.append(inputs[:, 0])
-        return np.concatenate(obs), np.concatenate(means)
+                actions.append(np.asarray(sa.get_actions(slice(0, n)))[:, 0])
+        return np.concatenate(obs), np.concatenate(means), np.concatenate(actions)
 
-    for obs, means in oracle.algo.env_runner_group.foreach_env_runner(
-        partner_means, local_env_runner=False
+    for obs, means, actions in oracle.algo.env_runner_group.foreach_env_runner(
+        partner_actions, local_env_runner=False
     ):
         assert len(means) > 50
+        # A frozen partner plays its mean, with no exploration noise, like the Grapher.
+        np.testing.assert_array_equal(actions, means)
         # Float32 matmuls over a batch of 4 (the env runner) and of all rows (here) round
         # differently in the last bits; the weights before the push differ by far more.
         np.testing.assert_allclose(means, expected.mean(obs).numpy(), rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(rescale_action(actions), expected.act(obs), rtol=0, atol=1e-5)
         assert np.abs(means - before.mean(obs).numpy()).max() > 0.05
+
+
+def test_the_learner_still_explores(oracle):
+    def learner_noise(runner):
+        out = []
+        for ep in runner.sample(num_timesteps=200, force_reset=True):
+            for aid in ep.agent_ids:
+                if ep.module_for(aid) == LEARNER:
+                    sa = ep.agent_episodes[aid]
+                    n = len(sa)
+                    inputs = np.asarray(
+                        sa.get_extra_model_outputs("action_dist_inputs", slice(0, n))
+                    )
+                    out.append(np.asarray(sa.get_actions(slice(0, n)))[:, 0] - inputs[:, 0])
+        return np.concatenate(out)
+
+    for noise in oracle.algo.env_runner_group.foreach_env_runner(
+        learner_noise, local_env_runner=False
+    ):
+        assert len(noise) > 50 and np.std(noise) > 0.1  # sampled from its Gaussian
 
 
 def test_exported_learner_equals_rllib_forward_inference_and_rescaling(oracle):
