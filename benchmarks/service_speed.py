@@ -69,9 +69,7 @@ def machine_scaling(rounds: int, n: int = 20_000_000) -> float:
     return 2 * statistics.median(ones) / statistics.median(twos)
 
 
-def grapher_speed(
-    config: RunConfig, members: int, episodes: int, rounds: int
-) -> dict[str, float]:
+def grapher_speed(config: RunConfig, members: int, episodes: int, rounds: int) -> dict[str, float]:
     """1 and 2 workers on the same hyperedges and seeds, alternated `rounds` times (this
     machine's two cores are shared and their speed drifts); medians are reported."""
     env = config.env
