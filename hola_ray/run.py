@@ -27,16 +27,16 @@ DEFAULT: dict[str, Any] = {
     "env": {"n_pursuers": 3, "n_evaders": 1},
     "oracle": {
         "env_steps": 100_000,
-        "train_batch": 2048,
-        "minibatch": 256,
+        "train_batch": 8192,
+        "minibatch": 1024,
         "epochs": 10,
-        "lr": 5e-4,
+        "lr": 1e-3,
         "hidden": [64, 64],
         "envs_per_runner": 16,
     },
     "pretrain": {"env_steps": 100_000, "alpha": 0.05},
     "population": {"max_size": 6, "initial_size": 4, "top_m": 3},
-    "grapher": {"episodes_per_edge": 16, "workers": 2},
+    "grapher": {"episodes_per_edge": 64, "workers": 2},
 }
 """The embedded default run (configs/default.yaml holds the same)."""
 

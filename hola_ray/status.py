@@ -94,22 +94,43 @@ def _fmt(value: Any) -> str:
 
 
 def plot_progress(run_dir: Path) -> Path:
-    """Learner success (± s.e.) and φ entropy per generation → RUN_DIR/progress.png."""
+    """Success and team return with the population (± s.e.) and φ entropy per generation
+    → RUN_DIR/progress.png. Generation 0 shows the pre-trained population (G_0), later
+    ones the learner of that generation with the members it was evaluated with."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     rows = list(csv.DictReader((run_dir / "metrics.csv").open()))
-    gens = [int(r["generation"]) for r in rows if r.get("learner_success")]
-    success = [float(r["learner_success"]) for r in rows if r.get("learner_success")]
-    se = [float(r["learner_success_se"]) for r in rows if r.get("learner_success")]
-    entropy = [float(r["phi_entropy"]) for r in rows]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.2))
-    a.errorbar(gens, success, yerr=se, marker="o", capsize=3)
-    a.set(xlabel="generation", ylabel="learner success with population", ylim=(0, 1))
-    b.plot([int(r["generation"]) for r in rows], entropy, marker="o")
-    b.set(xlabel="generation", ylabel="φ entropy (nats)")
+
+    def series(prefix: str, name: str) -> tuple[list[int], list[float], list[float]]:
+        have = [r for r in rows if r.get(f"{prefix}_{name}")]
+        return (
+            [int(r["generation"]) for r in have],
+            [float(r[f"{prefix}_{name}"]) for r in have],
+            [float(r[f"{prefix}_{name}_se"]) for r in have],
+        )
+
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    for ax, name, label in (
+        (axes[0], "success", "success rate"),
+        (axes[1], "return", "team return"),
+    ):
+        for prefix, text, style in (
+            ("population", "G_0 (pre-trained)", "s"),
+            ("learner", "learner + population", "o"),
+        ):
+            gens, mean, se = series(prefix, name)
+            if gens:
+                ax.errorbar(gens, mean, yerr=se, marker=style, capsize=3, label=text)
+        ax.set(xlabel="generation", ylabel=label)
+        ax.legend(fontsize=8)
+    axes[0].set_ylim(bottom=0)
+    every = [int(r["generation"]) for r in rows]
+    axes[2].plot(every, [float(r["phi_entropy"]) for r in rows], marker="o")
+    axes[2].set(xlabel="generation", ylabel="φ entropy (nats)")
+    fig.suptitle(run_dir.name, fontsize=9)
     fig.tight_layout()
     out = run_dir / "progress.png"
     fig.savefig(out, dpi=120)
