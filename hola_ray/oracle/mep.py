@@ -10,6 +10,8 @@ targets like any other reward.
 
 from __future__ import annotations
 
+import time
+
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -75,12 +77,20 @@ class OracleLearner(PPOTorchLearner):
       that update instead and counts it as `num_skipped_updates`.
     """
 
+    update_s: float = 0.0
+    """Seconds spent in `update` so far (the learner pipeline and SGD). RLlib's own
+    learner_update_timer is a moving average, not a per-iteration time."""
+
     def update(self, *args, training_data=None, **kwargs):
-        episodes = getattr(training_data, "episodes", None) or kwargs.get("episodes")
-        if episodes is not None and not any(self._trains_on(ep) for ep in episodes):
-            self.metrics.log_value("num_skipped_updates", 1, reduce="sum")
-            return self.metrics.reduce()
-        return super().update(*args, training_data=training_data, **kwargs)
+        start = time.perf_counter()
+        try:
+            episodes = getattr(training_data, "episodes", None) or kwargs.get("episodes")
+            if episodes is not None and not any(self._trains_on(ep) for ep in episodes):
+                self.metrics.log_value("num_skipped_updates", 1, reduce="sum")
+                return self.metrics.reduce()
+            return super().update(*args, training_data=training_data, **kwargs)
+        finally:
+            self.update_s += time.perf_counter() - start
 
     def _trains_on(self, episode) -> bool:
         """Whether a (multi-agent) episode chunk holds a step of a module being trained."""

@@ -88,9 +88,9 @@ class TrainStats:
     wall_s: float
     """seconds spent in `algo.train()`"""
     sample_s: float
-    """of which sampling (RLlib's env_runner_sampling_timer)"""
+    """of which sampling: everything but the learner update (weight sync included)"""
     learn_s: float
-    """of which the learner update (RLlib's learner_update_timer)"""
+    """of which the learner update (GAE pipeline and SGD), timed in `OracleLearner`"""
     episode_return: float
     """mean summed team return of the last iteration's episodes (NaN if none ended)"""
     module_return: dict[str, float]
@@ -204,7 +204,8 @@ class Oracle:
     def train(self, env_steps: int, desc: str = "oracle", progress: bool = True) -> TrainStats:
         """Run PPO updates until at least `env_steps` environment steps were sampled."""
         done = iterations = 0
-        wall = sample = learn = 0.0
+        wall = 0.0
+        learn_before = self._update_seconds()
         result: dict[str, Any] = {}
         with tqdm(total=env_steps, desc=desc, unit="step", disable=not progress) as bar:
             while done < env_steps:
@@ -213,15 +214,14 @@ class Oracle:
                 wall += time.perf_counter() - start
                 runners = result.get("env_runners", {})
                 steps = int(runners.get("num_env_steps_sampled", 0))
-                timers = result.get("timers", {})
-                sample += float(timers.get("env_runner_sampling_timer", 0.0))
-                learn += float(timers.get("learner_update_timer", 0.0))
                 done += steps
                 iterations += 1
                 bar.update(min(steps, env_steps - bar.n))
                 ret = runners.get("episode_return_mean", float("nan"))
                 bar.set_postfix(ret=f"{ret:.1f}", sps=f"{done / wall:.0f}")
         self.env_steps += done
+        learn = self._update_seconds() - learn_before
+        sample = max(wall - learn, 0.0)
         runners = result.get("env_runners", {})
         module_return = {
             k: float(v) for k, v in runners.get("module_episode_returns_mean", {}).items()
@@ -235,6 +235,10 @@ class Oracle:
             episode_return=float(runners.get("episode_return_mean", np.nan)),
             module_return=module_return,
         )
+
+    def _update_seconds(self) -> float:
+        results = self.algo.learner_group.foreach_learner(lambda lr: lr.update_s)
+        return float(sum(r.get() for r in results if r.ok))
 
     # ---- weights ------------------------------------------------------------------------
     def weights(self, module_ids: Sequence[str]) -> dict[str, dict[str, np.ndarray]]:

@@ -193,3 +193,12 @@ def test_mean_policy_logp_is_the_log_of_the_mixture_density(oracle):
         z = (actions[:, 0] - mean) / log_std.exp()
         dens.append(torch.exp(-0.5 * z**2) / (log_std.exp() * np.sqrt(2 * np.pi)))
     np.testing.assert_allclose(got.numpy(), torch.log((dens[0] + dens[1]) / 2).numpy(), rtol=1e-5)
+
+
+def test_train_splits_its_time_into_sampling_and_the_learner_update(oracle):
+    stats = oracle.train(400, progress=False)
+    assert stats.env_steps >= 400 and stats.iterations >= 1
+    # The update is timed inside the learner, so it is a real part of this call's time
+    # (RLlib's own timers are moving averages and could exceed it).
+    assert 0 < stats.learn_s < stats.wall_s
+    assert stats.sample_s == pytest.approx(stats.wall_s - stats.learn_s)
