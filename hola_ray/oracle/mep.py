@@ -10,9 +10,8 @@ targets like any other reward.
 
 from __future__ import annotations
 
-import time
-
 import math
+import time
 from collections.abc import Sequence
 from typing import Any
 
