@@ -5,8 +5,9 @@
 1. Grapher: hyperedge-evaluation episodes/s with 1 and 2 workers (member actors side by
    side) on the same hyperedges and seeds → the speedup (target ≥ 1.8× on 2 CPUs), next
    to the machine's own scaling from one busy process to two, measured in the same run.
-2. Oracle: environment steps/s sampled by RLlib's env runner (sampling time only) and
-   overall (sampling + PPO update), with the default config's PPO and the paper's
+2. Oracle: environment steps/s sampled (over the time of each iteration outside the PPO
+   update, which the learner times itself) and overall (sampling + PPO update), with the
+   default config's PPO and the paper's
    (batch 1024, minibatch 256, 20 epochs, 256×256) → the paper's 1e6-step oracle in minutes.
 3. One generation of the default config end to end, broken into pre-train, oracle,
    grapher and coordinator wall time.
