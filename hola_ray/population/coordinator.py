@@ -61,7 +61,6 @@ class Coordinator:
             self.population = Population.from_dict(state["population"])
             self.last_metrics = self.run.read_json(self.generation, "metrics.json")
         self.phase = "idle"
-        self._candidate: tuple[dict, dict] | None = None
         self._edges: list[EdgeResult] = []
         self._pending_exports: dict[int, tuple[dict, dict]] = {}
         tags = ("run",)
