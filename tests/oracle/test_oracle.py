@@ -52,8 +52,10 @@ def test_one_hot_phi_maps_every_partner_slot_to_that_module(oracle, slot):
     oracle.set_phi({target: 1.0}, salt=slot)
 
     def sample_modules(runner):
-        """Module ids of every pursuer slot in fresh episodes, read off the episodes."""
-        episodes = runner.sample(num_timesteps=600, force_reset=True)
+        """Module ids of every pursuer slot in fresh episodes, read off the episodes.
+        Enough steps for about 50 episodes: a slot the learner never drew in n episodes
+        has chance 3·(2/3)^n (5% at n = 10, 5e-9 at n = 50)."""
+        episodes = runner.sample(num_timesteps=2400, force_reset=True)
         return [{aid: ep.module_for(aid) for aid in ep.agent_ids} for ep in episodes]
 
     seen = oracle.algo.env_runner_group.foreach_env_runner(sample_modules, local_env_runner=False)
