@@ -42,6 +42,7 @@ def random_export(obs_dim: int, hidden: tuple[int, ...], seed: int) -> dict:
     shapes = list(itertools.pairwise(sizes))
     return {
         "format": FORMAT,
+        "dist": "beta",
         "weights": [torch.randn(o, i, generator=g) / i**0.5 for i, o in shapes],
         "biases": [torch.zeros(o) for _, o in shapes],
         "activation": "tanh",

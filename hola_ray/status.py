@@ -3,7 +3,9 @@
 Reads the run directory: last completed generation, population with slot, η, φ and node
 value, the last metrics row. With --live (or RAY_ADDRESS set) it also asks the running
 coordinator actor for its view, which includes the phase of the generation in progress.
---plot writes RUN_DIR/progress.png: learner success and φ entropy over generations.
+--plot writes RUN_DIR/progress.png: success, collision and return per generation (accepted
+learners and the best generation marked), φ entropy, and the policy's spread per PPO
+iteration.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ _METRICS = (
     "learner_return",
     "learner_collision",
     "learner_length",
+    "std_median",
+    "clipped",
     "accepted",
     "rank",
     "phi_entropy",
@@ -94,15 +98,19 @@ def _fmt(value: Any) -> str:
 
 
 def plot_progress(run_dir: Path) -> Path:
-    """Success and team return with the population (± s.e.) and φ entropy per generation
-    → RUN_DIR/progress.png. Generation 0 shows the pre-trained population (G_0), later
-    ones the learner of that generation with the members it was evaluated with."""
+    """RUN_DIR/progress.png. Per generation: success, collision and team return (± s.e.)
+    of G_0 (generation 0, the pre-trained population) and of each generation's learner as
+    it was judged (with the population's members, or in self-play as three copies), the
+    accepted learners and the best generation marked; φ entropy. Per PPO iteration
+    (iterations.csv): the trained policy's median std and its clipped fraction."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = list(csv.DictReader((run_dir / "metrics.csv").open()))
+    run = RunDir(run_dir)
+    rows = list(csv.DictReader(run.metrics_csv.open()))
+    best = run.best_generation()
 
     def series(prefix: str, name: str) -> tuple[list[int], list[float], list[float]]:
         have = [r for r in rows if r.get(f"{prefix}_{name}")]
@@ -112,24 +120,72 @@ def plot_progress(run_dir: Path) -> Path:
             [float(r[f"{prefix}_{name}_se"]) for r in have],
         )
 
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    fig, axes = plt.subplots(2, 3, figsize=(13, 6.6))
     for ax, name, label in (
-        (axes[0], "success", "success rate"),
-        (axes[1], "return", "team return"),
+        (axes[0, 0], "success", "success rate"),
+        (axes[0, 1], "collision", "collision rate"),
+        (axes[0, 2], "return", "team return"),
     ):
         for prefix, text, style in (
             ("population", "G_0 (pre-trained)", "s"),
-            ("learner", "learner + population", "o"),
+            ("learner", "learner as judged", "o"),
         ):
             gens, mean, se = series(prefix, name)
             if gens:
                 ax.errorbar(gens, mean, yerr=se, marker=style, capsize=3, label=text)
+        gens, mean, _ = series("learner", name)
+        value = dict(zip(gens, mean, strict=True))
+        accepted = [int(r["generation"]) for r in rows if r.get("accepted") == "1"]
+        shown = [g for g in accepted if g in value]
+        if shown:
+            ax.scatter(
+                shown,
+                [value[g] for g in shown],
+                s=110,
+                facecolors="none",
+                edgecolors="tab:green",
+                linewidths=1.5,
+                label="accepted",
+                zorder=3,
+            )
+        if best is not None and best in value:
+            ax.scatter(
+                [best],
+                [value[best]],
+                marker="*",
+                s=160,
+                color="gold",
+                edgecolors="k",
+                label="best.pt",
+                zorder=4,
+            )
         ax.set(xlabel="generation", ylabel=label)
-        ax.legend(fontsize=8)
-    axes[0].set_ylim(bottom=0)
+        ax.legend(fontsize=7)
+    axes[0, 0].set_ylim(0, 1)
+    axes[0, 1].set_ylim(0, 1)
+
+    iterations = (
+        list(csv.DictReader(run.iterations_csv.open())) if run.iterations_csv.is_file() else []
+    )
+    for ax, key, label in (
+        (axes[1, 0], "std_median", "policy std, median (RLlib's [−1, 1] units)"),
+        (axes[1, 1], "clipped", "sampled actions at the Box's edge"),
+    ):
+        for pretrain in (True, False):
+            its = [r for r in iterations if (r["generation"] == "0") == pretrain and r.get(key)]
+            if its:
+                ax.plot(
+                    range(len(its)),
+                    [float(r[key]) for r in its],
+                    lw=1,
+                    label="pre-training" if pretrain else "learner",
+                )
+        ax.set(xlabel="PPO iteration", ylabel=label)
+        if iterations:
+            ax.legend(fontsize=7)
     every = [int(r["generation"]) for r in rows]
-    axes[2].plot(every, [float(r["phi_entropy"]) for r in rows], marker="o")
-    axes[2].set(xlabel="generation", ylabel="φ entropy (nats)")
+    axes[1, 2].plot(every, [float(r["phi_entropy"]) for r in rows], marker="o")
+    axes[1, 2].set(xlabel="generation", ylabel="φ entropy (nats)")
     fig.suptitle(run_dir.name, fontsize=9)
     fig.tight_layout()
     out = run_dir / "progress.png"

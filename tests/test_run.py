@@ -116,6 +116,11 @@ def test_sigkill_mid_generation_then_resume_loses_nothing(tmp_path):
         ({"method": "sp2"}, "method"),
         ({"population": {"max_size": 2}}, "population.max_size"),
         ({"oracle": {"env_steps": -1}}, "oracle.env_steps"),
+        ({"oracle": {"action_dist": "normal"}}, "oracle.action_dist"),
+        ({"env": {"reward": {"collision": -10}}}, "reward.collision"),
+        ({"env": {"reward": {"teammate_distance": 0}}}, "reward.teammate_distance"),
+        ({"env": {"reward": {"capture": "10"}}}, "reward.capture"),
+        ({"env": {"reward": {"bonus": 1}}}, "reward.bonus"),
     ],
 )
 def test_bad_config_fails_before_ray_starts(tmp_path, capsys, patch, field):

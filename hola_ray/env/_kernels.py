@@ -49,7 +49,11 @@ F_E_SLIP_KEEP = 25
 F_E_MAX_TURN = 26
 F_E_MIN_CLEAR = 27
 F_SPAWN_SEP = 28
-N_FLOAT_PARAMS = 29
+F_OBSTACLE_PENALTY = 29
+F_OBSTACLE_REACH = 30
+F_MATE_PENALTY = 31
+F_MATE_REACH = 32
+N_FLOAT_PARAMS = 33
 
 # ---- packed integer parameters ------------------------------------------------------
 I_HORIZON = 0
@@ -119,9 +123,14 @@ def pack_params(config: PursuitConfig) -> Params:
     fp[F_KAPPA] = config.pursuer_collision_distance
     fp[F_OBS_SCALE] = config.obs_distance_scale
     fp[F_UNOBSERVED] = config.unobserved_distance
-    fp[F_CAPTURE_REWARD] = config.capture_reward
-    fp[F_COLLISION_PENALTY] = config.collision_penalty
-    fp[F_APPROACH_SCALE] = config.approach_scale
+    reward = config.reward
+    fp[F_CAPTURE_REWARD] = reward.capture
+    fp[F_COLLISION_PENALTY] = reward.collision
+    fp[F_APPROACH_SCALE] = reward.approach_scale
+    fp[F_OBSTACLE_PENALTY] = reward.obstacle_penalty
+    fp[F_OBSTACLE_REACH] = reward.obstacle_distance
+    fp[F_MATE_PENALTY] = reward.teammate_penalty
+    fp[F_MATE_REACH] = reward.teammate_distance
     fp[F_E_SENS] = ev.sensitivity_range
     fp[F_E_PANIC] = ev.panic_threshold
     fp[F_E_WANDER_CLEAR] = ev.wander_clearance
@@ -540,7 +549,8 @@ def step_episode(b, actions, p, s, out):
             if pactive[b, i]:
                 reward[b, i] += fp[F_CAPTURE_REWARD] * caught
 
-    # collisions: walls, bars and disabled pursuers (safe radius); active pairs (κ)
+    # collisions: walls, bars and disabled pursuers (safe radius); active pairs (κ);
+    # and the proximity penalties (obstacles, disabled pursuers; active teammates)
     any_collision = False
     for i in range(n_p):
         if not pactive[b, i]:
@@ -549,14 +559,22 @@ def step_episode(b, actions, p, s, out):
         py = ppos[b, i, 1]
         _, _, d = nearest_static(px, py, rects, fp[F_WIDTH], fp[F_HEIGHT])
         hit = d < fp[F_SAFE]
+        near_obstacle = d < fp[F_OBSTACLE_REACH]
+        near_mates = 0
         for j in range(n_p):
-            if j == i or hit:
+            if j == i:
                 continue
             dj = norm(ppos[b, j, 0] - px, ppos[b, j, 1] - py)
             if pactive[b, j]:
-                hit = dj < fp[F_KAPPA]
+                hit = hit or dj < fp[F_KAPPA]
+                if dj < fp[F_MATE_REACH]:
+                    near_mates += 1
             else:
-                hit = dj < fp[F_SAFE]
+                hit = hit or dj < fp[F_SAFE]
+                near_obstacle = near_obstacle or dj < fp[F_OBSTACLE_REACH]
+        if near_obstacle:
+            reward[b, i] -= fp[F_OBSTACLE_PENALTY]
+        reward[b, i] -= fp[F_MATE_PENALTY] * near_mates
         disabled[b, i] = hit
         if hit:
             reward[b, i] -= fp[F_COLLISION_PENALTY]

@@ -110,6 +110,49 @@ class EvaderConfig:
 
 
 @dataclass(frozen=True)
+class RewardConfig:
+    """Each pursuer's reward per step (SPEC §1). The defaults are SPEC's; DACOOP-A's code
+    used capture 20, collision 20, approach_scale 0.2 and obstacle_penalty 2 within 0.15 m."""
+
+    capture: float = 10.0
+    """to every active pursuer, for each evader captured this step (shared)"""
+    collision: float = 10.0
+    """subtracted from the reward of a pursuer that collides this step"""
+    approach_scale: float = 0.3
+    """the approach term is Σ (d_prev − d_now) / approach_scale over live evaders"""
+    obstacle_penalty: float = 0.0
+    """subtracted each step a pursuer ends nearer than obstacle_distance to an obstacle"""
+    obstacle_distance: float = 0.15
+    """reach of obstacle_penalty, metres (walls, bars and disabled pursuers)"""
+    teammate_penalty: float = 0.0
+    """subtracted each step, per active teammate nearer than teammate_distance"""
+    teammate_distance: float = 0.3
+    """reach of teammate_penalty, metres"""
+
+    def __post_init__(self) -> None:
+        for name in ("capture", "collision", "obstacle_penalty", "teammate_penalty"):
+            value = getattr(self, name)
+            require(
+                _is_number(value) and math.isfinite(value) and value >= 0,
+                f"reward.{name}",
+                "a finite number >= 0",
+                value,
+            )
+        for name in ("approach_scale", "obstacle_distance", "teammate_distance"):
+            value = getattr(self, name)
+            require(
+                _is_number(value) and math.isfinite(value) and value > 0,
+                f"reward.{name}",
+                "a finite number > 0",
+                value,
+            )
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+@dataclass(frozen=True)
 class PursuitConfig:
     """The pursuit scenario of SPEC §1 (paper Table I). Units: metres, seconds, radians."""
 
@@ -157,12 +200,8 @@ class PursuitConfig:
     """observed distances are divided by this"""
     unobserved_distance: float = 2.0
     """the distance reading of a captured evader or an unobserved teammate"""
-    capture_reward: float = 10.0
-    """reward to every pursuer for each evader captured this step"""
-    collision_penalty: float = 10.0
-    """subtracted from the reward of a pursuer that collides this step"""
-    approach_scale: float = 0.3
-    """the approach term is Σ (d_prev − d_now) / approach_scale over live evaders"""
+    reward: RewardConfig = field(default_factory=RewardConfig)
+    """each pursuer's reward (SPEC §1)"""
     evader: EvaderConfig = field(default_factory=EvaderConfig)
     """the escaper's parameters (SPEC §2)"""
 
@@ -176,7 +215,6 @@ class PursuitConfig:
             "capture_distance",
             "perception_range",
             "obs_distance_scale",
-            "approach_scale",
             "max_turn",
         )
         for name in positive:
@@ -191,8 +229,6 @@ class PursuitConfig:
             "safe_radius",
             "pursuer_collision_distance",
             "spawn_separation",
-            "capture_reward",
-            "collision_penalty",
             "unobserved_distance",
         ):
             value = getattr(self, name)
@@ -278,11 +314,12 @@ class PursuitConfig:
         if not isinstance(data, Mapping):
             raise ConfigError(f"a pursuit config must be a mapping, got {type(data).__name__}")
         kwargs = consume_fields(cls, data, "")
-        evader = kwargs.pop("evader", None)
-        if evader is not None:
-            if not isinstance(evader, Mapping):
-                raise ConfigError(f"evader must be a mapping, got {evader!r}")
-            kwargs["evader"] = EvaderConfig(**consume_fields(EvaderConfig, evader, "evader."))
+        for name, sub in (("evader", EvaderConfig), ("reward", RewardConfig)):
+            section = kwargs.pop(name, None)
+            if section is not None:
+                if not isinstance(section, Mapping):
+                    raise ConfigError(f"{name} must be a mapping, got {section!r}")
+                kwargs[name] = sub(**consume_fields(sub, section, f"{name}."))
         for key in ("obstacles",):
             if key in kwargs:
                 kwargs[key] = tuple(tuple(float(v) for v in rect) for rect in kwargs[key])

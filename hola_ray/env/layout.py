@@ -52,6 +52,12 @@ class ObsLayout:
         return self.teammates + 2 * (self.n_pursuers - 1)
 
     @property
+    def proximity(self) -> list[int]:
+        """Offsets of the distances a pursuer must keep from collision: the nearest obstacle
+        point, then each teammate."""
+        return [self.obstacle] + [self.teammates + 2 * j for j in range(self.n_pursuers - 1)]
+
+    @property
     def dim(self) -> int:
         """Length of the observation."""
         return self.own + 4

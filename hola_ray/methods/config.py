@@ -18,9 +18,38 @@ from typing import Any
 import yaml
 
 from hola_ray.env.config import ConfigError, PursuitConfig, consume_fields, require
+from hola_ray.env.layout import ObsLayout
+from hola_ray.policies.learned import DISTRIBUTIONS, export_from_rllib
 
-METHODS = {"hola": "myerson", "hola_r": "mean_reward"}
-"""Method name → the node value whose shifted inverse is φ (SPEC §4)."""
+
+@dataclass(frozen=True)
+class Method:
+    """A training method as a strategy over the one trainer (SPEC §5): how the partner
+    population is built, how the Oracle seats partners, who joins the population."""
+
+    name: str
+    """the value of `method` in a run config"""
+    phi_kind: str | None
+    """the node value whose shifted inverse is φ (SPEC §4); None: no partner population"""
+    description: str
+    """one line for help texts"""
+
+    @property
+    def self_play(self) -> bool:
+        """Every seat plays the learner: no population, no pre-training, no Grapher; the
+        learner is judged by its own team's rollout."""
+        return self.phi_kind is None
+
+
+METHODS = {
+    m.name: m
+    for m in (
+        Method("hola", "myerson", "HOLA-Drone: partners drawn by the inverse Myerson value"),
+        Method("hola_r", "mean_reward", "HOLA-Drone_R: partners by the inverse mean reward"),
+        Method("sp", None, "self-play: one trained module in every seat"),
+    )
+}
+"""The methods a run config may name."""
 
 
 def _positive_int(section: str, obj: Any, *names: str, minimum: int = 1) -> None:
@@ -58,6 +87,12 @@ class OracleConfig:
     """value-loss coefficient"""
     entropy_coef: float = 0.01
     """entropy-bonus coefficient"""
+    action_dist: str = "beta"
+    """the policy's action distribution: beta (bounded, hola_ray/oracle/distribution.py) or
+    gaussian (RLlib's default; unbounded, its samples clip at the Box)"""
+    proximity_length: float = 0.15
+    """ρ, metres: the networks also read exp(−d/ρ) of the obstacle and teammate distances
+    (hola_ray/policies/learned.py, proximity_features); 0 = the raw observation only"""
     clip: float = 0.2
     """PPO clip parameter"""
     hidden: tuple[int, ...] = (256, 256)
@@ -84,6 +119,13 @@ class OracleConfig:
         _finite(s, self, "vf_coef", 0.0, 1e3, "in [0, 1000]")
         _finite(s, self, "entropy_coef", 0.0, 1.0, "in [0, 1]")
         _finite(s, self, "clip", 1e-3, 1.0, "in [0.001, 1]")
+        _finite(s, self, "proximity_length", 0.0, 10.0, "in [0, 10] (0 = off)")
+        require(
+            self.action_dist in DISTRIBUTIONS,
+            "oracle.action_dist",
+            f"one of {', '.join(DISTRIBUTIONS)}",
+            self.action_dist,
+        )
         ok = len(self.hidden) >= 1 and all(isinstance(h, int) and h >= 1 for h in self.hidden)
         require(ok, "oracle.hidden", "a non-empty list of positive layer widths", self.hidden)
 
@@ -160,7 +202,8 @@ class RunConfig:
     """One HOLA-Drone training run: method, budget and every sub-config."""
 
     method: str = "hola"
-    """hola (φ from the inverse Myerson value) or hola_r (from the inverse mean reward)"""
+    """hola (φ from the inverse Myerson value), hola_r (from the inverse mean reward) or sp
+    (self-play: the learner in every seat)"""
     generations: int = 10
     """open-ended generations after pre-training"""
     seed: int = 0
@@ -195,9 +238,30 @@ class RunConfig:
         return self.env.n_pursuers
 
     @property
-    def phi_kind(self) -> str:
-        """The node value φ inverts: myerson or mean_reward."""
+    def model_features(self) -> dict[str, Any] | None:
+        """The learned policies' proximity features ({"indices", "gain"}), or None."""
+        if self.oracle.proximity_length == 0:
+            return None
+        return {
+            "indices": ObsLayout.from_config(self.env).proximity,
+            "gain": self.env.obs_distance_scale / self.oracle.proximity_length,
+        }
+
+    def export(self, state: Mapping[str, Any]) -> dict[str, Any]:
+        """The plain-torch export (`MLPPolicy`) of an RLlib module state of this config."""
+        return export_from_rllib(
+            state, activation="tanh", dist=self.oracle.action_dist, features=self.model_features
+        )
+
+    @property
+    def strategy(self) -> Method:
+        """The method this run trains with."""
         return METHODS[self.method]
+
+    @property
+    def phi_kind(self) -> str:
+        """The node value φ inverts (myerson or mean_reward); self-play has none."""
+        return self.strategy.phi_kind or "myerson"
 
     # ---- YAML ---------------------------------------------------------------------------
     @classmethod

@@ -1,7 +1,13 @@
-"""HOLA-Drone's outer loop (SPEC §5): MEP pre-training and G_0, then generations of
-Oracle → Grapher → coordinator. The driver only sequences the phases; the population
-lives in the coordinator actor, the hyperedge evaluations in member actors, the PPO in
-RLlib's env runners and learner.
+"""The one trainer (SPEC §5): generations of Oracle → judge → coordinator.
+
+HOLA-Drone (`hola`, `hola_r`): MEP pre-training and G_0, then each generation the Oracle
+trains the learner with partners drawn by φ, the Grapher weighs its hyperedges and the
+coordinator accepts it into the population or not. Self-play (`sp`): no population; the
+Oracle seats the learner in every slot and the learner is judged by its own team's
+rollout. The driver only sequences the phases; the population lives in the coordinator
+actor, the hyperedge evaluations in member actors, the PPO in RLlib's env runners and
+learner. Every method leaves `learner.pt` (the latest learner) and `best.pt` with
+`best.json` (the generation whose learner scored best in its judging).
 """
 
 from __future__ import annotations
@@ -15,9 +21,10 @@ import numpy as np
 import ray
 from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
+from hola_ray.evaluation.rollout import rollout
 from hola_ray.methods.config import RunConfig
 from hola_ray.oracle import LEARNER, Oracle, member_module
-from hola_ray.policies.learned import export_from_rllib
+from hola_ray.policies.learned import MLPPolicy
 from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name
 from hola_ray.population.grapher import evaluate_edges
 from hola_ray.population.member import MemberPool
@@ -31,7 +38,7 @@ class RunError(RuntimeError):
 
 @dataclass
 class Trainer:
-    """Runs one HOLA-Drone training run in `run_dir` on the connected Ray cluster."""
+    """Runs one training run (any method) in `run_dir` on the connected Ray cluster."""
 
     config: RunConfig
     run_dir: Path
@@ -57,7 +64,9 @@ class Trainer:
         oracle = None
         try:
             last = ray.get(self.coord.last_completed.remote())
-            if last is None:
+            if last is None and self.config.strategy.self_play:
+                last = 0  # no population to pre-train: generation 1 is the first
+            elif last is None:
                 rows.append(self._pretrain())
                 last = 0
             else:
@@ -89,7 +98,7 @@ class Trainer:
         finally:
             mep.stop()
         states_list = [states[m] for m in mep.members]
-        exports = [export_from_rllib(s) for s in states_list]
+        exports = [c.export(s) for s in states_list]
         pretrain_s = time.perf_counter() - start
         ray.get(self.coord.init_population.remote(exports, states_list))
 
@@ -103,11 +112,12 @@ class Trainer:
             "pretrain_env_steps": stats.env_steps,
             "pretrain_s": round(pretrain_s, 2),
             "pretrain_env_steps_per_s": round(stats.env_steps_per_s, 1),
+            **{f"pretrain_{k}": round(v, 4) for k, v in stats.spread.items()},
             **_edge_summary("population", results),
             **grapher,
             "coordinator_s": round(time.perf_counter() - start, 4),
         }
-        row = ray.get(self.coord.commit.remote(0, metrics, None, None))
+        row = ray.get(self.coord.commit.remote(0, metrics, None, None, stats.iteration_log))
         self._say(
             f"gen 0: pre-trained {c.population.initial_size} members with MEP in "
             f"{pretrain_s:.0f}s; G_0 success {row['population_success']:.0%}, "
@@ -121,31 +131,18 @@ class Trainer:
         prev = ray.get(self.coord.view.remote())["last_metrics"]
         self.coord.set_phase.remote("oracle")
         start = time.perf_counter()
-        slots = ray.get(self.coord.slots.remote())
-        changed = {slot: node for node, slot in slots.items() if self.loaded.get(slot) != node}
-        if changed:
-            states = ray.get(self.coord.member_states.remote(list(changed.values())))
-            oracle.set_partners({member_module(s): states[n] for s, n in changed.items()})
-            self.loaded.update(changed)
-        phi = ray.get(self.coord.phi.remote())
-        oracle.set_phi({member_module(slots[n]): p for n, p in phi.items()}, salt=g)
+        if not c.strategy.self_play:
+            self._seat_partners(g, oracle)
         stats = oracle.train(c.oracle.env_steps, desc=f"gen {g} oracle", progress=self.progress)
         learner_state = oracle.weights([LEARNER])[LEARNER]
-        export = export_from_rllib(learner_state)
+        export = oracle.export_state(learner_state)
         oracle_s = time.perf_counter() - start
 
-        self.coord.set_phase.remote("grapher")
-        candidate = ray.get(self.coord.propose.remote(export, learner_state))
-        results, grapher = self._grapher(g)
-
-        self.coord.set_phase.remote("coordinator")
-        start = time.perf_counter()
-        ray.get(self.coord.record.remote(results))
-        decision = ray.get(self.coord.decide.remote())
-        if not decision.accepted:
-            self.pool.remove(candidate)
-        if decision.replaced is not None:
-            self.pool.remove(decision.replaced)
+        if c.strategy.self_play:
+            self.coord.set_phase.remote("self-play evaluation")
+            judged, decision = self._self_play_eval(g, export), None
+        else:
+            judged, decision = self._judge_in_population(g, export, learner_state)
         metrics = {
             "env_steps": int(prev.get("env_steps", 0)) + stats.env_steps,
             "oracle_s": round(oracle_s, 2),
@@ -154,6 +151,57 @@ class Trainer:
             "oracle_sample_s": round(stats.sample_s, 2),
             "oracle_learn_s": round(stats.learn_s, 2),
             "oracle_learner_return": stats.module_return.get(LEARNER, float("nan")),
+            **{k: round(v, 4) for k, v in stats.spread.items()},
+            **judged,
+        }
+        row = ray.get(
+            self.coord.commit.remote(g, metrics, learner_state, decision, stats.iteration_log)
+        )
+        self.run.save_learner(export)
+        best = self.run.keep_best(g, row, export)
+        if decision is None:
+            verdict = (
+                "best so far" if best else f"best stays generation {self.run.best_generation()}"
+            )
+        elif decision.accepted:
+            verdict = f"accepted as node {decision.candidate} (rank {decision.rank}" + (
+                f", replaces {decision.replaced})" if decision.replaced is not None else ")"
+            )
+        else:
+            verdict = f"rejected (rank {decision.rank} > top {c.population.top_m})"
+        self._say(
+            f"gen {g}: learner success {row['learner_success']:.0%} ± "
+            f"{row['learner_success_se']:.0%}, collision {row['learner_collision']:.0%}, "
+            f"return {row['learner_return']:.1f}; {verdict}; std {row.get('std_median', 0):.2f}; "
+            f"oracle {oracle_s:.0f}s ({stats.env_steps_per_s:.0f} steps/s)"
+        )
+        return row
+
+    def _seat_partners(self, g: int, oracle: Oracle) -> None:
+        """Load the members whose slots changed into the Oracle and push this generation's φ."""
+        slots = ray.get(self.coord.slots.remote())
+        changed = {slot: node for node, slot in slots.items() if self.loaded.get(slot) != node}
+        if changed:
+            states = ray.get(self.coord.member_states.remote(list(changed.values())))
+            oracle.set_partners({member_module(s): states[n] for s, n in changed.items()})
+            self.loaded.update(changed)
+        phi = ray.get(self.coord.phi.remote())
+        oracle.set_phi({member_module(slots[n]): p for n, p in phi.items()}, salt=g)
+
+    def _judge_in_population(self, g: int, export, learner_state):
+        """HOLA-Drone: the Grapher weighs the learner's hyperedges; the coordinator decides."""
+        self.coord.set_phase.remote("grapher")
+        candidate = ray.get(self.coord.propose.remote(export, learner_state))
+        results, grapher = self._grapher(g)
+        self.coord.set_phase.remote("coordinator")
+        start = time.perf_counter()
+        ray.get(self.coord.record.remote(results))
+        decision = ray.get(self.coord.decide.remote())
+        if not decision.accepted:
+            self.pool.remove(candidate)
+        if decision.replaced is not None:
+            self.pool.remove(decision.replaced)
+        judged = {
             **_edge_summary("learner", results),
             **grapher,
             "candidate": candidate,
@@ -163,21 +211,26 @@ class Trainer:
             "replaced": -1 if decision.replaced is None else decision.replaced,
             "coordinator_s": round(time.perf_counter() - start, 4),
         }
-        row = ray.get(self.coord.commit.remote(g, metrics, learner_state, decision))
-        self.run.save_learner(export)
-        verdict = (
-            f"accepted as node {candidate} (rank {decision.rank}"
-            + (f", replaces {decision.replaced})" if decision.replaced is not None else ")")
-            if decision.accepted
-            else f"rejected (rank {decision.rank} > top {c.population.top_m})"
-        )
-        self._say(
-            f"gen {g}: learner success {row['learner_success']:.0%} ± "
-            f"{row['learner_success_se']:.0%}, return {row['learner_return']:.1f}; {verdict}; "
-            f"φ entropy {row['phi_entropy']:.2f}; oracle {oracle_s:.0f}s "
-            f"({stats.env_steps_per_s:.0f} steps/s), grapher {row['grapher_s']:.0f}s"
-        )
-        return row
+        return judged, decision
+
+    def _self_play_eval(self, g: int, export) -> dict[str, Any]:
+        """Self-play: the exported learner in every slot, `grapher.episodes_per_edge` episodes."""
+        c = self.config
+        start = time.perf_counter()
+        team = [MLPPolicy(c.env, export)] * c.env.n_pursuers
+        episodes = c.grapher.episodes_per_edge
+        result = rollout(c.env, team, episodes, seed=edge_seed(c.seed, g, ()))
+        summary = result.summary()
+        judged = {"learner_episodes": episodes, "eval_s": round(time.perf_counter() - start, 2)}
+        for name, key in (
+            ("success", "success"),
+            ("return", "team_return"),
+            ("collision", "collision"),
+            ("length", "length"),
+        ):
+            judged[f"learner_{name}"] = round(summary[key], 4)
+            judged[f"learner_{name}_se"] = round(summary[f"{key}_se"], 4)
+        return judged
 
     def _grapher(self, g: int) -> tuple[list[EdgeResult], dict[str, float]]:
         c = self.config

@@ -2,7 +2,8 @@
 
 One algorithm holds a trained module for the learner and a frozen module per population
 slot. A stateful `PartnerMapping` puts the learner in a random pursuer slot and draws the
-other slots from φ. Partner weights and φ are pushed straight into every env runner (and
+other slots from φ; in self-play (`method: sp`) there are no partners and every slot is
+the learner. Partner weights and φ are pushed straight into every env runner (and
 re-pushed into any env runner RLlib recreates), because weights set on a frozen module
 otherwise reach the env runners only an iteration late. The same class, in MEP mode,
 trains the initial population jointly with the population-entropy bonus.
@@ -27,11 +28,12 @@ from tqdm.auto import tqdm
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.pettingzoo_env import PursuitEnv
+from hola_ray.evaluation.probe import reference_observations
 from hola_ray.methods.config import RunConfig
-from hola_ray.oracle.frozen import FrozenPartnerModule
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.mep import OracleLearner
-from hola_ray.policies.learned import export_from_rllib
+from hola_ray.oracle.module import FrozenPartnerModule, PursuitCatalog, PursuitPPOModule
+from hola_ray.policies.learned import MLPPolicy
 
 ENV_NAME = "hola_ray_pursuit"
 ModuleState = Mapping[str, Any]
@@ -95,6 +97,24 @@ class TrainStats:
     """mean summed team return of the last iteration's episodes (NaN if none ended)"""
     module_return: dict[str, float]
     """mean return per module over the last iteration's episodes"""
+    iteration_log: tuple[dict[str, float], ...] = ()
+    """one row per PPO iteration: env steps so far, return, the trained policies' spread
+    (`MLPPolicy.spread` on reference observations, the widest trained module), entropy,
+    KL and value loss"""
+
+    @property
+    def spread(self) -> dict[str, float]:
+        """The last iteration's spread and the widest of the call: std_median, clipped,
+        std_median_max, clipped_max."""
+        if not self.iteration_log:
+            return {}
+        last = self.iteration_log[-1]
+        return {
+            "std_median": last["std_median"],
+            "clipped": last["clipped"],
+            "std_median_max": max(r["std_median"] for r in self.iteration_log),
+            "clipped_max": max(r["clipped"] for r in self.iteration_log),
+        }
 
     @property
     def env_steps_per_s(self) -> float:
@@ -107,21 +127,29 @@ class TrainStats:
 
 class Oracle:
     """Multi-agent PPO over the learner and frozen population partners (or, with
-    `mep_members`, the MEP pre-training of that many population members)."""
+    `mep_members`, the MEP pre-training of that many population members; or, for a
+    self-play method, the learner alone in every slot)."""
 
     def __init__(self, config: RunConfig, mep_members: int = 0, seed: int | None = None):
         self.config = config
         self.mep = mep_members > 0
-        slots = range(mep_members if self.mep else config.population.max_size)
-        self.members = [member_module(s) for s in slots]
-        self.modules = self.members if self.mep else [LEARNER, *self.members]
-        trainable = self.members if self.mep else [LEARNER]
-        uniform = {m: 1.0 for m in self.members}
-        self.mapping = PartnerMapping(config.env.n_pursuers, uniform, learner=not self.mep)
-        self.algo: Algorithm = self._algorithm_config(trainable, seed).build_algo()
-        self._pushed = _Pushed(phi=uniform, salt=0, weights={})
+        self.self_play = config.strategy.self_play and not self.mep
+        n_p = config.env.n_pursuers
+        if self.self_play:
+            self.members: list[str] = []
+            self.modules = [LEARNER]
+            # φ = the learner with certainty, and no separate learner seat: every slot
+            self.mapping = PartnerMapping(n_p, {LEARNER: 1.0}, learner=False)
+        else:
+            slots = range(mep_members if self.mep else config.population.max_size)
+            self.members = [member_module(s) for s in slots]
+            self.modules = self.members if self.mep else [LEARNER, *self.members]
+            self.mapping = PartnerMapping(n_p, {m: 1.0 for m in self.members}, learner=not self.mep)
+        self.trained = self.members if self.mep else [LEARNER]
+        self.algo: Algorithm = self._algorithm_config(self.trained, seed).build_algo()
+        self._pushed = _Pushed(phi=self.mapping.phi, salt=0, weights={})
         self.algo._hola_pushed = self._pushed  # read by _RepushOnRecreate
-        self.env_steps = 0
+        self._reference_obs = reference_observations(config.env)
 
     def _algorithm_config(self, trainable: Sequence[str], seed: int | None) -> PPOConfig:
         o, env = self.config.oracle, self.config.env
@@ -129,12 +157,16 @@ class Oracle:
             "fcnet_hiddens": list(o.hidden),
             "fcnet_activation": "tanh",
             "vf_share_layers": False,
+            "action_dist": o.action_dist,
+            "proximity": self.features,
         }
-        # Trained modules explore; frozen partners play their mean (oracle/frozen.py).
+        # Trained modules explore; frozen partners play their mean (oracle/module.py).
         frozen = set(self.modules) - set(trainable)
         specs = {
             m: RLModuleSpec(
-                module_class=FrozenPartnerModule if m in frozen else None, model_config=model
+                module_class=FrozenPartnerModule if m in frozen else PursuitPPOModule,
+                catalog_class=PursuitCatalog,
+                model_config=model,
             )
             for m in self.modules
         }
@@ -207,19 +239,25 @@ class Oracle:
         wall = 0.0
         learn_before = self._update_seconds()
         result: dict[str, Any] = {}
+        log: list[dict[str, float]] = []
         with tqdm(total=env_steps, desc=desc, unit="step", disable=not progress) as bar:
             while done < env_steps:
                 start = time.perf_counter()
                 result = self.algo.train()
                 wall += time.perf_counter() - start
                 runners = result.get("env_runners", {})
-                steps = int(runners.get("num_env_steps_sampled", 0))
+                steps = runners.get("num_env_steps_sampled", 0)
+                # RLlib reported NaN here once in a 3M-step run (no runner failed): count
+                # such an iteration as no steps rather than crash.
+                steps = int(steps) if np.isfinite(steps) else 0
                 done += steps
                 iterations += 1
-                bar.update(min(steps, env_steps - bar.n))
                 ret = runners.get("episode_return_mean", float("nan"))
-                bar.set_postfix(ret=f"{ret:.1f}", sps=f"{done / wall:.0f}")
-        self.env_steps += done
+                log.append({"env_steps": done, "return": float(ret), **self._health(result)})
+                bar.update(min(steps, env_steps - bar.n))
+                bar.set_postfix(
+                    ret=f"{ret:.1f}", std=f"{log[-1]['std_median']:.2f}", sps=f"{done / wall:.0f}"
+                )
         learn = self._update_seconds() - learn_before
         sample = max(wall - learn, 0.0)
         runners = result.get("env_runners", {})
@@ -234,7 +272,24 @@ class Oracle:
             learn_s=learn,
             episode_return=float(runners.get("episode_return_mean", np.nan)),
             module_return=module_return,
+            iteration_log=tuple(log),
         )
+
+    def _health(self, result: Mapping[str, Any]) -> dict[str, float]:
+        """What says the trained policies are sound after an iteration: the widest trained
+        module's spread on the reference observations, and RLlib's mean entropy, KL and
+        value loss over the trained modules."""
+        weights = self.weights(self.trained)
+        spreads = [self.policy(weights[m]).spread(self._reference_obs) for m in self.trained]
+        learners = result.get("learners", {})
+        row = {
+            "std_median": max(s["std_median"] for s in spreads),
+            "clipped": max(s["clipped"] for s in spreads),
+        }
+        for key in ("entropy", "mean_kl_loss", "vf_loss"):
+            values = [learners[m][key] for m in self.trained if key in learners.get(m, {})]
+            row[key] = float(np.mean(values)) if values else float("nan")
+        return row
 
     def _update_seconds(self) -> float:
         results = self.algo.learner_group.foreach_learner(lambda lr: lr.update_s)
@@ -250,10 +305,18 @@ class Oracle:
         self.algo.learner_group.set_weights(dict(weights))
         _Pushed(self._pushed.phi, self._pushed.salt, dict(weights)).push(self.algo.env_runner_group)
 
-    def export(self, module_id: str) -> dict[str, Any]:
-        """The plain-torch export of a module (what `MLPPolicy` plays)."""
-        state = self.weights([module_id])[module_id]
-        return export_from_rllib(state, activation="tanh", low=0.0, high=1.0)
+    @property
+    def features(self) -> dict[str, Any] | None:
+        """The modules' proximity features ({"indices", "gain"}), or None."""
+        return self.config.model_features
+
+    def export_state(self, state: ModuleState) -> dict[str, Any]:
+        """The plain-torch export of an RLlib module state of this Oracle's modules."""
+        return self.config.export(state)
+
+    def policy(self, state: ModuleState) -> MLPPolicy:
+        """The deterministic policy that everything outside the Oracle plays."""
+        return MLPPolicy(self.config.env, self.export_state(state))
 
     def stop(self) -> None:
         self.algo.stop()

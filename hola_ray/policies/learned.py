@@ -1,15 +1,25 @@
 """A learned pursuer in plain torch: the exported actor of an RLlib PPO module.
 
 The export is a small dict saved with `torch.save`: the actor's linear layers, its
-activation and the action bounds. `MLPPolicy` plays it without Ray or RLlib, with the
-same arithmetic as RLlib's `forward_inference` followed by the env runner's action
-rescaling: the Gaussian's mean lives in [−1, 1] and maps to the Box as
-low + (mean + 1)·(high − low)/2, clipped to [low, high].
+activation, its action distribution and the action bounds. `MLPPolicy` plays it without
+Ray or RLlib, with the same arithmetic as RLlib's `forward_inference`, the distribution's
+deterministic action and the env runner's action rescaling:
+
+- `beta` (the Oracle's distribution, `hola_ray.oracle.distribution.BetaTurn`): the
+  head's two outputs give concentrations c = softplus(x) + 1 and the action is the Beta's
+  mean, 2·c1/(c1 + c0) − 1 in RLlib's normalised [−1, 1];
+- `gaussian` (RLlib's default, exports of format 1): the head's first output, the mean.
+
+The normalised action maps to the Box as low + (a + 1)·(high − low)/2, clipped.
+
+An export may name proximity features (`proximity_features`): the actor then reads the
+observation with exp(−gain·x) of the obstacle and teammate distance readings appended,
+as the RLlib module did (`hola_ray.oracle.module`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -19,8 +29,14 @@ import torch
 from hola_ray.env.config import PursuitConfig
 from hola_ray.policies.base import Policy
 
-FORMAT = "hola_ray.mlp/1"
+FORMAT = "hola_ray.mlp/2"
 """The version tag of the export dict."""
+
+_FORMATS = {"hola_ray.mlp/1": "gaussian", FORMAT: None}
+"""Readable export formats → the distribution they imply (None: the export names it)."""
+
+DISTRIBUTIONS = ("beta", "gaussian")
+"""Action distributions an export can hold."""
 
 _ACTIVATIONS = {"tanh": torch.tanh, "relu": torch.relu, "linear": lambda x: x}
 
@@ -30,17 +46,49 @@ _ENCODER_PREFIXES = ("encoder.actor_encoder.net.mlp.", "encoder.encoder.net.mlp.
 _HEAD_PREFIX = "pi.net.mlp."
 
 
+BETA_MAX_CONCENTRATION = 500.0
+"""The Beta's concentrations are capped here (its std then stays ≥ 0.03 in [−1, 1], a
+1.4° turn), so its log-density, and PPO's probability ratio, stay finite."""
+
+
+def proximity_features(obs: torch.Tensor, indices: Sequence[int], gain: float) -> torch.Tensor:
+    """obs [..., D] → [..., D + len(indices)]: exp(−gain·obs[..., i]) appended for each i.
+
+    A distance reading d/scale of 0.2 m and one of 0.3 m differ by only 0.02 in the raw
+    observation, against a range of 2; exp(−d/ρ) (gain = scale/ρ) spreads the few tenths of
+    a metre where collisions happen over most of [0, 1], so the network resolves them."""
+    if not indices:
+        return obs
+    return torch.cat([obs, torch.exp(-gain * obs[..., list(indices)])], dim=-1)
+
+
+def beta_concentrations(logits: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The Beta's (c1, c0) from a head's outputs [..., 2·d]: softplus(x) + 1, capped at
+    `BETA_MAX_CONCENTRATION`; the first half of the outputs gives c1, the second c0."""
+    c = (torch.nn.functional.softplus(logits) + 1.0).clamp(max=BETA_MAX_CONCENTRATION)
+    c1, c0 = c.chunk(2, dim=-1)
+    return c1, c0
+
+
 def export_from_rllib(
-    state: Mapping[str, Any], activation: str = "tanh", low: float = 0.0, high: float = 1.0
+    state: Mapping[str, Any],
+    activation: str = "tanh",
+    low: float = 0.0,
+    high: float = 1.0,
+    dist: str = "beta",
+    features: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The export dict of an RLlib default PPO module's state (`get_state()` or learner weights).
 
     The encoder layers take `activation`; the head's hidden layers (if any) take it too and
-    its last layer is linear and outputs the Gaussian's mean and log-std. The whole last
-    layer is kept (not only the mean's row) so the matmul, and its rounding, is RLlib's.
+    its last layer is linear and outputs the distribution's inputs (`dist`). The whole last
+    layer is kept so the matmul, and its rounding, is RLlib's. `features`: the module's
+    proximity features ({"indices": [...], "gain": g}), or None.
     """
     if activation not in _ACTIVATIONS:
         raise ValueError(f"activation must be one of {sorted(_ACTIVATIONS)}, got {activation!r}")
+    if dist not in DISTRIBUTIONS:
+        raise ValueError(f"dist must be one of {DISTRIBUTIONS}, got {dist!r}")
     encoder = next((p for p in _ENCODER_PREFIXES if f"{p}0.weight" in state), None)
     if encoder is None:
         raise ValueError(
@@ -50,9 +98,11 @@ def export_from_rllib(
     layers = _linear_layers(state, encoder) + _linear_layers(state, _HEAD_PREFIX)
     out_dim = layers[-1][0].shape[0]
     if out_dim % 2:
-        raise ValueError(f"the policy head must output mean and log-std, got {out_dim} outputs")
-    return {
+        raise ValueError(f"the policy head must output two numbers per action, got {out_dim}")
+    out: dict[str, Any] = {"features": dict(features)} if features else {}
+    return out | {
         "format": FORMAT,
+        "dist": dist,
         "weights": [torch.as_tensor(np.asarray(w, dtype=np.float32)) for w, _ in layers],
         "biases": [torch.as_tensor(np.asarray(b, dtype=np.float32)) for _, b in layers],
         "activation": activation,
@@ -71,20 +121,28 @@ def _linear_layers(state: Mapping[str, Any], prefix: str) -> list[tuple[Any, Any
 
 
 class MLPPolicy(Policy):
-    """A deterministic pursuer from an export dict: the rescaled Gaussian mean of its actor."""
+    """A deterministic pursuer from an export dict: its distribution's deterministic action."""
 
     def __init__(self, config: PursuitConfig, export: Mapping[str, Any], name: str = "mlp"):
         super().__init__(config)
-        if export.get("format") != FORMAT:
-            raise ValueError(f"not a {FORMAT} export (format {export.get('format')!r})")
+        fmt = export.get("format")
+        if fmt not in _FORMATS:
+            raise ValueError(f"not a {FORMAT} export (format {fmt!r})")
+        self.dist = _FORMATS[fmt] or export.get("dist")
+        if self.dist not in DISTRIBUTIONS:
+            raise ValueError(f"export names no known distribution ({self.dist!r})")
         self.name = name
         self.weights = [torch.as_tensor(w, dtype=torch.float32) for w in export["weights"]]
         self.biases = [torch.as_tensor(b, dtype=torch.float32) for b in export["biases"]]
         self.activation = _ACTIVATIONS[export["activation"]]
         self.low, self.high = float(export["low"]), float(export["high"])
-        if self.weights[0].shape[1] != self.layout.dim:
+        features = export.get("features") or {}
+        self.feature_indices = [int(i) for i in features.get("indices", ())]
+        self.feature_gain = float(features.get("gain", 0.0))
+        inputs = self.weights[0].shape[1] - len(self.feature_indices)
+        if inputs != self.layout.dim:
             raise ValueError(
-                f"{name} was trained on observations of size {self.weights[0].shape[1]}, "
+                f"{name} was trained on observations of size {inputs}, "
                 f"this scenario has {self.layout.dim}"
             )
 
@@ -95,17 +153,52 @@ class MLPPolicy(Policy):
         return cls(config, export, name=Path(path).stem)
 
     @torch.no_grad()
-    def mean(self, obs: np.ndarray | torch.Tensor) -> torch.Tensor:
-        """The actor's Gaussian mean [N] in RLlib's normalised [−1, 1] action space."""
+    def logits(self, obs: np.ndarray | torch.Tensor) -> torch.Tensor:
+        """The actor's outputs [N, 2]: the action distribution's inputs."""
         if isinstance(obs, np.ndarray) and not obs.flags.writeable:
             obs = obs.copy()  # torch cannot wrap a read-only array
-        x = torch.as_tensor(obs, dtype=torch.float32)
+        x = proximity_features(
+            torch.as_tensor(obs, dtype=torch.float32), self.feature_indices, self.feature_gain
+        )
         last = len(self.weights) - 1
         for k, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
             x = torch.nn.functional.linear(x, w, b)
             if k < last:
                 x = self.activation(x)
-        return x[:, 0]
+        return x
+
+    @torch.no_grad()
+    def mean(self, obs: np.ndarray | torch.Tensor) -> torch.Tensor:
+        """The deterministic action [N] in RLlib's normalised [−1, 1] action space."""
+        x = self.logits(obs)
+        if self.dist == "gaussian":
+            return x[:, 0]
+        c1, c0 = beta_concentrations(x)
+        return (2.0 * (c1 / (c1 + c0)) - 1.0)[:, 0]  # torch's Beta.mean, then the affine map
+
+    @torch.no_grad()
+    def spread(self, obs: np.ndarray | torch.Tensor, samples: int = 16) -> dict[str, float]:
+        """How wide the trained (sampled) policy is on `obs`, in RLlib's [−1, 1] units.
+
+        std_median: the median over observations of the distribution's standard deviation;
+        clipped: the fraction of sampled actions that reach the Box's edges (the Gaussian's
+        samples outside [−1, 1], which the env runner clips; the Beta's samples within
+        0.01 of ±1, a turn of at least 99 % of the largest, which it never clips).
+        """
+        x = self.logits(obs)
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(0)
+            if self.dist == "gaussian":
+                mean, std = x[:, 0], x[:, 1].clamp(-20.0, 20.0).exp()
+                sampled = mean + std * torch.randn((samples, mean.shape[0]))
+                clipped = (sampled.abs() >= 1.0).float().mean()
+            else:
+                c1, c0 = (c[:, 0] for c in beta_concentrations(x))
+                beta = torch.distributions.Beta(c1, c0)
+                std = 2.0 * beta.stddev
+                sampled = 2.0 * beta.sample((samples,)) - 1.0
+                clipped = (sampled.abs() >= 0.99).float().mean()
+        return {"std_median": float(std.median()), "clipped": float(clipped)}
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         return rescale_action(self.mean(self._check(obs)).numpy(), self.low, self.high)

@@ -130,8 +130,10 @@ class Coordinator:
         metrics: Mapping[str, Any],
         learner_state: Mapping[str, Any] | None,
         decision: Decision | None = None,
+        iterations: Sequence[Mapping[str, float]] = (),
     ) -> dict[str, Any]:
-        """Persist generation `generation` and publish its metrics; returns the metrics row."""
+        """Persist generation `generation` (its metrics and the Oracle's per-iteration log)
+        and publish its metrics; returns the metrics row."""
         start = time.perf_counter()
         for node, (export, state) in self._pending_exports.items():
             if node in self.population.slots:
@@ -158,16 +160,24 @@ class Coordinator:
         }
         row["persist_s"] = round(time.perf_counter() - start, 4)
         files["metrics.json"] = row
+        files["iterations.json"] = [dict(r) for r in iterations]
         self.run.write_generation(generation, files, learner_state)
         self.run.rewrite_metrics_csv()
         self.generation = generation
         self.last_metrics = row
         self._edges = []
-        self._publish(row)
+        self._publish(row, iterations)
         return row
 
-    def _publish(self, row: Mapping[str, Any]) -> None:
+    def _publish(self, row: Mapping[str, Any], iterations: Sequence[Mapping[str, float]]) -> None:
         g = row["generation"]
+        # per PPO iteration, on the run's env-step axis (pre-training on its own)
+        group = "pretrain" if g == 0 else "iteration"
+        before = int(row.get("env_steps", 0)) - int(iterations[-1]["env_steps"]) if g else 0
+        for it in iterations:
+            for key, value in it.items():
+                if key != "env_steps" and math.isfinite(value):
+                    self._tb.add_scalar(f"{group}/{key}", value, before + int(it["env_steps"]))
         self._gauges["generation"].set(g, tags=self._tags)
         self._gauges["phi_entropy"].set(row["phi_entropy"], tags=self._tags)
         self._gauges["population_size"].set(row["population_size"], tags=self._tags)

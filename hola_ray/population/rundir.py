@@ -9,9 +9,13 @@
         hyfog.json  phi.json      the HyFoG and φ after the generation
         metrics.json              the generation's metrics
         learner.rllib.pt          the learner's RLlib state at the end of the generation
+        iterations.json           one row per PPO iteration (spread, entropy, KL, return)
       metrics.csv                 one row per completed generation
+      iterations.csv              one row per PPO iteration of every completed generation
       tb/                         TensorBoard events of the same metrics
       learner.pt                  the latest learner as a plain-torch export
+      best.pt, best.json          the learner of the generation judged best (success, then
+                                  lower collision) and what it was judged on
 
 A generation folder is written under a temporary name and renamed into place, so it is
 either complete or absent: the last complete folder is where `--resume` starts.
@@ -41,8 +45,11 @@ class RunDir:
         self.generations = self.root / "generations"
         self.config = self.root / "config.yaml"
         self.metrics_csv = self.root / "metrics.csv"
+        self.iterations_csv = self.root / "iterations.csv"
         self.tensorboard = self.root / "tb"
         self.learner = self.root / "learner.pt"
+        self.best = self.root / "best.pt"
+        self.best_info = self.root / "best.json"
 
     def create(self, config_yaml: str) -> None:
         self.members.mkdir(parents=True, exist_ok=True)
@@ -69,6 +76,33 @@ class RunDir:
     def save_learner(self, export: Mapping[str, Any]) -> None:
         """The latest learner as a plain-torch export (`MLPPolicy.load(config, path)`)."""
         _atomic_torch_save(dict(export), self.learner)
+
+    def best_generation(self) -> int | None:
+        """The generation whose learner `best.pt` holds, if any."""
+        if not self.best_info.is_file():
+            return None
+        return int(json.loads(self.best_info.read_text())["generation"])
+
+    def keep_best(self, g: int, row: Mapping[str, Any], export: Mapping[str, Any]) -> bool:
+        """Make generation g's learner `best.pt` if it judged better than the one kept:
+        higher learner_success, then lower learner_collision. Returns whether it did."""
+        score = (float(row["learner_success"]), -float(row["learner_collision"]))
+        if self.best_info.is_file():
+            kept = json.loads(self.best_info.read_text())
+            if score <= (kept["learner_success"], -kept["learner_collision"]):
+                return False
+        info = {
+            "generation": g,
+            "learner_success": float(row["learner_success"]),
+            "learner_collision": float(row["learner_collision"]),
+            "learner_length": float(row["learner_length"]),
+            "env_steps": int(row.get("env_steps", 0)),
+            "judged_by": "highest learner_success, then lowest learner_collision, over the "
+            "generations' own judging (self-play rollout, or the Grapher's hyperedges)",
+        }
+        _atomic_torch_save(dict(export), self.best)
+        _atomic_write_text(self.best_info, json.dumps(info, indent=1))
+        return True
 
     # ---- generations --------------------------------------------------------------------
     def generation(self, g: int) -> Path:
@@ -130,21 +164,34 @@ class RunDir:
     def metrics_rows(self) -> list[dict[str, Any]]:
         return [self.read_json(g, "metrics.json") for g in self.completed()]
 
+    def iteration_rows(self) -> list[dict[str, Any]]:
+        """Every completed generation's PPO iterations, each row tagged with its generation."""
+        rows = []
+        for g in self.completed():
+            path = self.generation(g) / "iterations.json"
+            if path.is_file():
+                rows += [{"generation": g, **r} for r in json.loads(path.read_text())]
+        return rows
+
     def rewrite_metrics_csv(self) -> None:
-        """metrics.csv from the completed generations' metrics.json (never a lost or doubled
-        row, whatever was killed when)."""
-        rows = self.metrics_rows()
-        if not rows:
-            return
-        columns: list[str] = ["generation"]
-        for row in rows:
-            columns += [k for k in row if k not in columns]
-        tmp = self.metrics_csv.with_suffix(".csv.tmp")
-        with tmp.open("w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=columns)
-            writer.writeheader()
-            writer.writerows(rows)
-        os.replace(tmp, self.metrics_csv)
+        """metrics.csv and iterations.csv from the completed generations' folders (never a
+        lost or doubled row, whatever was killed when)."""
+        _write_csv(self.metrics_csv, self.metrics_rows())
+        _write_csv(self.iterations_csv, self.iteration_rows())
+
+
+def _write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
+    if not rows:
+        return
+    columns: list[str] = ["generation"]
+    for row in rows:
+        columns += [k for k in row if k not in columns]
+    tmp = path.with_suffix(".csv.tmp")
+    with tmp.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(rows)
+    os.replace(tmp, path)
 
 
 def _atomic_write_text(path: Path, text: str) -> None:

@@ -22,6 +22,10 @@ from hola_ray.env import ConfigError, EvaderConfig, PursuitConfig
         ({"unobserved_distance": 1.0}, "unobserved_distance", "largest observable"),
         ({"evader": {"max_turn": 4.0}}, "evader.max_turn", "(0, π]"),
         ({"evader": {"wander_hold_max": 5}}, "evader.wander_hold_max", ">= wander_hold_min"),
+        ({"reward": {"collision": -10}}, "reward.collision", ">= 0"),
+        ({"reward": {"obstacle_penalty": float("inf")}}, "reward.obstacle_penalty", ">= 0"),
+        ({"reward": {"approach_scale": 0}}, "reward.approach_scale", "> 0"),
+        ({"reward": {"teammate_distance": True}}, "reward.teammate_distance", "> 0"),
     ],
 )
 def test_bad_values_name_the_field_and_range(change, field, allowed):
@@ -37,6 +41,8 @@ def test_unknown_keys_are_rejected():
         PursuitConfig.from_dict({"n_pursuer": 3})
     with pytest.raises(ConfigError, match="evader.speed"):
         PursuitConfig.from_dict({"evader": {"speed": 1.0}})
+    with pytest.raises(ConfigError, match="reward.capture_reward"):
+        PursuitConfig.from_dict({"reward": {"capture_reward": 20.0}})
 
 
 def test_defaults_match_spec_table():
@@ -46,6 +52,8 @@ def test_defaults_match_spec_table():
     assert (cfg.pursuer_speed, cfg.evader_speed, cfg.dt, cfg.horizon) == (0.3, 0.6, 0.1, 1000)
     assert (cfg.capture_distance, cfg.perception_range, cfg.safe_radius) == (0.2, 2.0, 0.1)
     assert cfg.pursuer_collision_distance == 0.2
+    assert (cfg.reward.capture, cfg.reward.collision, cfg.reward.approach_scale) == (10, 10, 0.3)
+    assert cfg.reward.obstacle_penalty == cfg.reward.teammate_penalty == 0.0
     assert math.isclose(cfg.evader.max_turn, math.radians(30))
     # 2 evaders × 3 + obstacle 2 + 2 teammates × 2 + own 4
     assert cfg.obs_dim == 16

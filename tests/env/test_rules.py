@@ -187,3 +187,21 @@ def test_reset_options_validate(config):
         env.reset(initial_state={0: {"pursuer_heading": np.zeros(2)}})
     with pytest.raises(ValueError, match="unknown initial-state"):
         env.reset(initial_state={0: {"pursuer_speed": 1.0}})
+
+
+def test_proximity_penalties(frozen_config):
+    """Pursuer 0 sits 0.12 m from the left wall (inside the 0.15 m obstacle reach, outside
+    the 0.1 m safe radius); pursuers 1 and 2 are 0.25 apart (inside the 0.3 m teammate
+    reach, outside κ = 0.2). With obstacle_penalty 2 and teammate_penalty 0.5 the rewards
+    drop by exactly 2, 0.5 and 0.5 against the default reward, which has no penalties."""
+    pursuers = np.array([[0.12, 2.0], [1.5, 2.0], [1.75, 2.0]])
+    evaders = far_evaders(frozen_config)
+    base = single(frozen_config, pursuer_pos=pursuers, evader_pos=evaders)
+    reward = dataclasses.replace(frozen_config.reward, obstacle_penalty=2.0, teammate_penalty=0.5)
+    shaped = single(
+        dataclasses.replace(frozen_config, reward=reward), pursuer_pos=pursuers, evader_pos=evaders
+    )
+    plain = base.step(np.full((1, 3), 0.5)).reward[0].copy()
+    result = shaped.step(np.full((1, 3), 0.5))
+    np.testing.assert_allclose(result.reward[0] - plain, [-2.0, -0.5, -0.5], atol=1e-12)
+    assert not result.disabled.any()

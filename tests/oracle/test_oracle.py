@@ -10,7 +10,11 @@ import torch
 from hola_ray.methods.config import RunConfig
 from hola_ray.oracle import LEARNER, Oracle, PartnerMapping, member_module
 from hola_ray.oracle.mep import mean_policy_logp
-from hola_ray.policies.learned import MLPPolicy, export_from_rllib, rescale_action
+from hola_ray.policies.learned import (
+    MLPPolicy,
+    beta_concentrations,
+    rescale_action,
+)
 
 CONFIG = RunConfig.from_dict(
     {
@@ -27,6 +31,14 @@ CONFIG = RunConfig.from_dict(
     }
 )
 OBS = np.random.default_rng(0).uniform(-1, 1, (64, CONFIG.env.obs_dim)).astype(np.float32)
+UNIFORM_STD = 1 / np.sqrt(3)
+"""The widest Beta with both concentrations ≥ 1 is the uniform: std 2/√12 on [−1, 1]."""
+
+
+def beta_mean(inputs: np.ndarray) -> np.ndarray:
+    """The Beta's deterministic action on [−1, 1] from RLlib's action-dist inputs [N, 2]."""
+    c1, c0 = beta_concentrations(torch.as_tensor(inputs))
+    return (2.0 * (c1 / (c1 + c0)) - 1.0)[:, 0].numpy()
 
 
 @pytest.fixture(scope="module")
@@ -80,12 +92,12 @@ def test_mapping_is_consistent_within_an_episode_and_follows_phi():
 
 def test_frozen_partner_acts_with_the_pushed_weights(oracle):
     before = MLPPolicy(
-        CONFIG.env, export_from_rllib(oracle.weights([member_module(1)])[member_module(1)])
+        CONFIG.env, CONFIG.export(oracle.weights([member_module(1)])[member_module(1)])
     )
     state = random_state(oracle, seed=1)
     oracle.set_partners({member_module(1): state})
     oracle.set_phi({member_module(1): 1.0})
-    expected = MLPPolicy(CONFIG.env, export_from_rllib(state))
+    expected = MLPPolicy(CONFIG.env, CONFIG.export(state))
 
     def partner_actions(runner):
         """The partner's observations, action-distribution means and actions (in RLlib's
@@ -99,7 +111,7 @@ def test_frozen_partner_acts_with_the_pushed_weights(oracle):
                 n = len(sa)
                 obs.append(np.asarray(sa.get_observations(slice(0, n))))
                 inputs = np.asarray(sa.get_extra_model_outputs("action_dist_inputs", slice(0, n)))
-                means.append(inputs[:, 0])
+                means.append(beta_mean(inputs))
                 actions.append(np.asarray(sa.get_actions(slice(0, n)))[:, 0])
         return np.concatenate(obs), np.concatenate(means), np.concatenate(actions)
 
@@ -127,42 +139,45 @@ def test_the_learner_still_explores(oracle):
                     inputs = np.asarray(
                         sa.get_extra_model_outputs("action_dist_inputs", slice(0, n))
                     )
-                    out.append(np.asarray(sa.get_actions(slice(0, n)))[:, 0] - inputs[:, 0])
+                    out.append(np.asarray(sa.get_actions(slice(0, n)))[:, 0] - beta_mean(inputs))
         return np.concatenate(out)
 
     for noise in oracle.algo.env_runner_group.foreach_env_runner(
         learner_noise, local_env_runner=False
     ):
-        assert len(noise) > 50 and np.std(noise) > 0.1  # sampled from its Gaussian
+        assert len(noise) > 50 and np.std(noise) > 0.1  # sampled from its Beta
 
 
 def test_exported_learner_equals_rllib_forward_inference_and_rescaling(oracle):
     from gymnasium.spaces import Box
     from ray.rllib.utils.spaces.space_utils import unsquash_action
 
-    export = oracle.export(LEARNER)
-    policy = MLPPolicy(CONFIG.env, export)
     state = oracle.weights([LEARNER])[LEARNER]
+    policy = oracle.policy(state)
+    assert policy.dist == "beta"
+
+    def deterministic(module) -> np.ndarray:
+        """RLlib's inference path: forward_inference, the module's own action distribution
+        made deterministic, sampled: the normalised action [N, 1]."""
+        with torch.no_grad():
+            out = module.forward_inference({"obs": torch.from_numpy(OBS)})
+            dist = module.get_inference_action_dist_cls().from_logits(out["action_dist_inputs"])
+            return dist.to_deterministic().sample().numpy()
 
     # In this process (same torch threads): bit for bit.
     module = oracle.algo.learner_group._learner.module[LEARNER]
-    with torch.no_grad():
-        out = module.forward_inference({"obs": torch.from_numpy(OBS)})
     space = Box(0.0, 1.0, (1,), np.float32)
-    mean = out["action_dist_inputs"][:, :1].numpy()
-    np.testing.assert_array_equal(
-        policy.act(OBS), np.stack([unsquash_action(a, space) for a in mean])[:, 0]
-    )
+    expected = np.stack([unsquash_action(a, space) for a in deterministic(module)])[:, 0]
+    np.testing.assert_array_equal(policy.act(OBS), expected)
 
     def rllib_actions(runner):
         from ray.rllib.utils.spaces.space_utils import unsquash_action
 
         runner.module[LEARNER].set_state(state)
-        with torch.no_grad():
-            out = runner.module[LEARNER].forward_inference({"obs": torch.from_numpy(OBS)})
-        mean = out["action_dist_inputs"][:, :1].numpy()
         space = runner.env.envs[0].unwrapped.action_space["pursuer_0"]
-        return np.stack([unsquash_action(a, space) for a in mean])[:, 0]
+        return np.stack([unsquash_action(a, space) for a in deterministic(runner.module[LEARNER])])[
+            :, 0
+        ]
 
     # In an env runner (one torch thread, another summation order): to the last float32 bit.
     for actions in oracle.algo.env_runner_group.foreach_env_runner(
@@ -186,15 +201,80 @@ def test_rescaling_matches_rllib_including_clipping():
 def test_mean_policy_logp_is_the_log_of_the_mixture_density(oracle):
     modules = {m: oracle.algo.learner_group._learner.module[m] for m in oracle.members[:2]}
     obs = torch.from_numpy(OBS[:8])
-    actions = torch.linspace(-1, 1, 8)[:, None]
-    got = mean_policy_logp(modules, list(modules), obs, actions)
+    actions = torch.linspace(-0.9, 0.9, 8)[:, None]
+    with torch.no_grad():
+        got = mean_policy_logp(modules, list(modules), obs, actions)
     dens = []
     for module in modules.values():
-        inputs = module.forward_inference({"obs": obs})["action_dist_inputs"]
-        mean, log_std = inputs[:, 0], inputs[:, 1]
-        z = (actions[:, 0] - mean) / log_std.exp()
-        dens.append(torch.exp(-0.5 * z**2) / (log_std.exp() * np.sqrt(2 * np.pi)))
-    np.testing.assert_allclose(got.numpy(), torch.log((dens[0] + dens[1]) / 2).numpy(), rtol=1e-5)
+        with torch.no_grad():
+            inputs = module.forward_inference({"obs": obs})["action_dist_inputs"].double()
+        a = torch.nn.functional.softplus(inputs[:, 0]) + 1  # concentrations, as BetaTurn's
+        b = torch.nn.functional.softplus(inputs[:, 1]) + 1
+        x = (actions[:, 0].double() + 1) / 2
+        log_norm = torch.lgamma(a + b) - torch.lgamma(a) - torch.lgamma(b)
+        # density of the turn a ∈ [−1, 1]: the Beta's density of x = (a + 1)/2, halved
+        dens.append(torch.exp(log_norm + (a - 1) * x.log() + (b - 1) * (1 - x).log()) / 2)
+    expected = torch.log((dens[0] + dens[1]) / 2).numpy()
+    np.testing.assert_allclose(got.numpy(), expected, rtol=1e-5, atol=1e-6)
+
+
+def test_spread_stays_bounded_while_training():
+    """The Beta cannot widen past the uniform, whatever the entropy bonus (here 0.05, five
+    times the paper's), and nothing it samples leaves the Box: the Gaussian it replaces
+    reached a median std of 536 with 98 % of its samples clipped."""
+    wide = RunConfig.from_dict(
+        CONFIG.to_dict()
+        | {"oracle": CONFIG.to_dict()["oracle"] | {"entropy_coef": 0.05, "lr": 0.01}}
+    )
+    oracle = Oracle(wide, seed=3)
+    try:
+        stats = oracle.train(1600, progress=False)
+
+        def sampled(runner):
+            return np.concatenate(
+                [
+                    np.asarray(
+                        ep.agent_episodes[aid].get_actions(slice(0, len(ep.agent_episodes[aid])))
+                    )[:, 0]
+                    for ep in runner.sample(num_timesteps=200, force_reset=True)
+                    for aid in ep.agent_ids
+                    if ep.module_for(aid) == LEARNER and len(ep.agent_episodes[aid])
+                ]
+            )
+
+        actions = np.concatenate(
+            oracle.algo.env_runner_group.foreach_env_runner(sampled, local_env_runner=False)
+        )
+    finally:
+        oracle.stop()
+    assert stats.iterations >= 4
+    for row in stats.iteration_log:
+        assert 0 < row["std_median"] <= UNIFORM_STD + 1e-6
+        assert 0 <= row["clipped"] < 0.05  # uniform: 1 % of samples within 0.01 of ±1
+    assert len(actions) > 50 and np.all(np.abs(actions) < 1)
+
+
+def test_self_play_seats_the_learner_in_every_slot():
+    config = RunConfig.from_dict(CONFIG.to_dict() | {"method": "sp"})
+    oracle = Oracle(config)
+    try:
+        assert oracle.modules == [LEARNER] and oracle.members == []
+
+        def modules(runner):
+            return [
+                {aid: ep.module_for(aid) for aid in ep.agent_ids}
+                for ep in runner.sample(num_timesteps=300, force_reset=True)
+            ]
+
+        seen = oracle.algo.env_runner_group.foreach_env_runner(modules, local_env_runner=False)
+        stats = oracle.train(400, progress=False)
+    finally:
+        oracle.stop()
+    episodes = [m for runner in seen for m in runner]
+    assert len(episodes) >= 4
+    for mapping in episodes:
+        assert mapping == {f"pursuer_{i}": LEARNER for i in range(3)}
+    assert stats.module_return.keys() <= {LEARNER}
 
 
 def test_train_splits_its_time_into_sampling_and_the_learner_update(oracle):

@@ -22,11 +22,12 @@ EPISODES = 6
 
 
 def random_export(seed: int) -> dict:
-    """A small random actor (obs → 16 → mean, log-std) in the export format."""
+    """A small random actor (obs → 16 → the Beta's two inputs) in the export format."""
     g = torch.Generator().manual_seed(seed)
     shapes = [(16, ENV.obs_dim), (2, 16)]
     return {
         "format": FORMAT,
+        "dist": "beta",
         "weights": [torch.randn(s, generator=g) for s in shapes],
         "biases": [torch.randn(s[0], generator=g) * 0.5 for s in shapes],
         "activation": "tanh",

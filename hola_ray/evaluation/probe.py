@@ -1,0 +1,30 @@
+"""A fixed set of pursuer observations on which to watch a policy's spread while it trains."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.env.core import BatchedPursuit
+from hola_ray.evaluation.stats import episode_seeds
+from hola_ray.policies.greedy import Greedy
+
+
+def reference_observations(
+    config: PursuitConfig, episodes: int = 32, every: int = 10, seed: int = 12_345
+) -> np.ndarray:
+    """Observations [N, obs_dim] of active pursuers, every `every` steps of `episodes`
+    episodes played by a Greedy team: start-of-episode states and the chase after them.
+    The same config and seed always give the same set."""
+    env = BatchedPursuit(config, episodes)
+    obs = env.reset(seeds=episode_seeds(seed, episodes))
+    team = Greedy(config)
+    out = []
+    step = 0
+    while not env.done.all():
+        if step % every == 0:
+            out.append(obs[~env.done][env.pursuer_active[~env.done]].copy())
+        actions = team.act(obs.reshape(-1, obs.shape[-1])).reshape(episodes, -1)
+        obs = env.step(actions).obs
+        step += 1
+    return np.concatenate(out).astype(np.float32)
