@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from hola_ray.methods.config import RunConfig
 from hola_ray.population.rundir import RunDir
 
 _METRICS = (
@@ -101,7 +102,8 @@ def plot_progress(run_dir: Path) -> Path:
     """RUN_DIR/progress.png. Per generation: success, collision and team return (± s.e.)
     of G_0 (generation 0, the pre-trained population) and of each generation's learner as
     it was judged (with the population's members, or in self-play as three copies), the
-    accepted learners and the best generation marked; φ entropy. Per PPO iteration
+    accepted learners and the best generation marked; φ entropy (self-play: episode
+    length). Per PPO iteration
     (iterations.csv): the trained policy's median std and its clipped fraction."""
     import matplotlib
 
@@ -183,9 +185,14 @@ def plot_progress(run_dir: Path) -> Path:
         ax.set(xlabel="PPO iteration", ylabel=label)
         if iterations:
             ax.legend(fontsize=7)
-    every = [int(r["generation"]) for r in rows]
-    axes[1, 2].plot(every, [float(r["phi_entropy"]) for r in rows], marker="o")
-    axes[1, 2].set(xlabel="generation", ylabel="φ entropy (nats)")
+    if RunConfig.from_yaml(run.config).strategy.self_play:  # no population, no φ
+        gens, mean, se = series("learner", "length")
+        axes[1, 2].errorbar(gens, mean, yerr=se, marker="o", capsize=3)
+        axes[1, 2].set(xlabel="generation", ylabel="episode length (steps)")
+    else:
+        every = [int(r["generation"]) for r in rows]
+        axes[1, 2].plot(every, [float(r["phi_entropy"]) for r in rows], marker="o")
+        axes[1, 2].set(xlabel="generation", ylabel="φ entropy (nats)")
     fig.suptitle(run_dir.name, fontsize=9)
     fig.tight_layout()
     out = run_dir / "progress.png"

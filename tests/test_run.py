@@ -55,6 +55,35 @@ def test_smoke_run_writes_the_whole_run_directory(tmp_path):
     # The status command reads it.
     assert status.main([str(out), "--plot"]) == 0
     assert (out / "progress.png").stat().st_size > 0
+    # Per-iteration health of what was trained: the pre-trained members and the learner.
+    its = r.iteration_rows()
+    assert {row["generation"] for row in its} == {0, 1}
+    assert all(0 < row["std_median"] <= 1 / 3**0.5 + 1e-6 for row in its)  # a Beta's bound
+    assert r.iterations_csv.is_file() and "std_median" in rows[1] and "clipped" in rows[1]
+
+
+def test_self_play_run_seats_one_learner_and_keeps_its_best(tmp_path):
+    """method sp: no population and no pre-training; each generation judges the exported
+    learner as the whole team; learner.pt is the latest, best.pt the best judged."""
+    config = tmp_path / "sp.yaml"
+    smoke = yaml.safe_load(SMOKE.read_text())
+    config.write_text(yaml.safe_dump(smoke | {"method": "sp", "generations": 2}))
+    out = tmp_path / "sp"
+    done = main_job("--config", str(config), "--out", str(out))
+    assert done.returncode == 0, done.stderr[-3000:]
+    r = RunDir(out)
+    assert r.completed() == [1, 2]
+    assert not list(r.members.glob("*.pt"))
+    rows = r.metrics_rows()
+    assert all(row["population_size"] == 0 and "grapher_s" not in row for row in rows)
+    assert all(row["learner_episodes"] == smoke["grapher"]["episodes_per_edge"] for row in rows)
+    best = r.best_generation()
+    score = {row["generation"]: (row["learner_success"], -row["learner_collision"]) for row in rows}
+    assert score[best] == max(score.values())
+    env = PursuitConfig.from_yaml(SMOKE)
+    for path in (r.learner, r.best):
+        assert rollout(env, [MLPPolicy.load(env, path)] * 3, episodes=2).episodes == 2
+    assert status.main([str(out), "--plot"]) == 0
 
 
 def _digest(run_dir: RunDir, g: int) -> str:

@@ -95,6 +95,14 @@ class OracleConfig:
     (hola_ray/policies/learned.py, proximity_features); 0 = the raw observation only"""
     clip: float = 0.2
     """PPO clip parameter"""
+    kl_coef: float = 0.0
+    """initial coefficient of RLlib's adaptive KL penalty (RLlib's default 0.2); 0 = off,
+    the clipped objective alone, as in the PPO paper and CleanRL"""
+    vf_clip: float = 1e6
+    """squared value errors above this give no gradient (RLlib's vf_clip_param, default
+    10: with capture and collision rewards of ±10 it silenced most of the critic's errors)"""
+    grad_clip: float = 0.5
+    """global gradient-norm clip (CleanRL's and SB3's 0.5); 0 = none (RLlib's default)"""
     hidden: tuple[int, ...] = (256, 256)
     """hidden layer widths of the actor and the critic (tanh)"""
     env_runners: int = 1
@@ -119,6 +127,9 @@ class OracleConfig:
         _finite(s, self, "vf_coef", 0.0, 1e3, "in [0, 1000]")
         _finite(s, self, "entropy_coef", 0.0, 1.0, "in [0, 1]")
         _finite(s, self, "clip", 1e-3, 1.0, "in [0.001, 1]")
+        _finite(s, self, "kl_coef", 0.0, 10.0, "in [0, 10]")
+        _finite(s, self, "vf_clip", 1e-3, 1e12, "in [0.001, 1e12]")
+        _finite(s, self, "grad_clip", 0.0, 1e6, "in [0, 1e6] (0 = none)")
         _finite(s, self, "proximity_length", 0.0, 10.0, "in [0, 10] (0 = off)")
         require(
             self.action_dist in DISTRIBUTIONS,

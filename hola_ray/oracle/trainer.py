@@ -100,7 +100,7 @@ class TrainStats:
     iteration_log: tuple[dict[str, float], ...] = ()
     """one row per PPO iteration: env steps so far, return, the trained policies' spread
     (`MLPPolicy.spread` on reference observations, the widest trained module), entropy,
-    KL and value loss"""
+    value loss and explained variance (KL when the KL penalty is on)"""
 
     @property
     def spread(self) -> dict[str, float]:
@@ -196,6 +196,11 @@ class Oracle:
                 vf_loss_coeff=o.vf_coef,
                 entropy_coeff=o.entropy_coef,
                 clip_param=o.clip,
+                use_kl_loss=o.kl_coef > 0,
+                kl_coeff=o.kl_coef,
+                vf_clip_param=o.vf_clip,
+                grad_clip=o.grad_clip or None,
+                grad_clip_by="global_norm",
             )
             .learners(
                 learner_class=OracleLearner,
@@ -277,8 +282,8 @@ class Oracle:
 
     def _health(self, result: Mapping[str, Any]) -> dict[str, float]:
         """What says the trained policies are sound after an iteration: the widest trained
-        module's spread on the reference observations, and RLlib's mean entropy, KL and
-        value loss over the trained modules."""
+        module's spread on the reference observations, and RLlib's mean entropy, value loss,
+        explained variance (and KL penalty, when on) over the trained modules."""
         weights = self.weights(self.trained)
         spreads = [self.policy(weights[m]).spread(self._reference_obs) for m in self.trained]
         learners = result.get("learners", {})
@@ -286,7 +291,10 @@ class Oracle:
             "std_median": max(s["std_median"] for s in spreads),
             "clipped": max(s["clipped"] for s in spreads),
         }
-        for key in ("entropy", "mean_kl_loss", "vf_loss"):
+        keys = ["entropy", "vf_loss_unclipped", "vf_explained_var"]
+        if self.config.oracle.kl_coef > 0:
+            keys.append("mean_kl_loss")
+        for key in keys:
             values = [learners[m][key] for m in self.trained if key in learners.get(m, {})]
             row[key] = float(np.mean(values)) if values else float("nan")
         return row
