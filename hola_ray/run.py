@@ -114,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     from hola_ray.methods.hola import Trainer
 
     print(
-        f"HOLA-Drone run in {out}: method {config.method}, {config.generations} generations, "
+        f"training run in {out}: method {config.method}, {config.generations} generations, "
         f"{config.oracle.env_steps:,} env steps per oracle",
         flush=True,
     )
