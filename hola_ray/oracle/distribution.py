@@ -11,7 +11,7 @@ deterministic action, the mean, is the centre of what is sampled.
 `BetaTurn` lives on RLlib's normalised [−1, 1] (RLlib unsquashes to the Box); its two
 inputs per action dimension map to concentrations softplus(x) + 1 ≥ 1, so the density is
 unimodal and finite at the bounds. `hola_ray.policies.learned` plays the same mean in
-plain torch (`beta_mean`).
+plain torch (`MLPPolicy.mean`, through the same `beta_concentrations`).
 """
 
 from __future__ import annotations
