@@ -31,6 +31,14 @@ from hola_ray.population.member import MemberPool
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import EdgeResult, edge_seed
 
+_REPORTED = (
+    ("success", "success"),
+    ("return", "team_return"),
+    ("collision", "collision"),
+    ("length", "length"),
+)
+"""(metric name in metrics.csv, its field in an edge result or a rollout summary)"""
+
 
 class RunError(RuntimeError):
     """A run cannot start or continue as asked (e.g. a run directory already in use)."""
@@ -222,12 +230,7 @@ class Trainer:
         result = rollout(c.env, team, episodes, seed=edge_seed(c.seed, g, ()))
         summary = result.summary()
         judged = {"learner_episodes": episodes, "eval_s": round(time.perf_counter() - start, 2)}
-        for name, key in (
-            ("success", "success"),
-            ("return", "team_return"),
-            ("collision", "collision"),
-            ("length", "length"),
-        ):
+        for name, key in _REPORTED:
             judged[f"learner_{name}"] = round(summary[key], 4)
             judged[f"learner_{name}_se"] = round(summary[f"{key}_se"], 4)
         return judged
@@ -263,12 +266,7 @@ def _edge_summary(prefix: str, results: list[EdgeResult]) -> dict[str, float]:
     """Episode-weighted means over hyperedges, with the standard error across hyperedges."""
     n = np.array([r.episodes for r in results], dtype=np.float64)
     out: dict[str, float] = {}
-    for name, key in (
-        ("success", "success"),
-        ("return", "team_return"),
-        ("collision", "collision"),
-        ("length", "length"),
-    ):
+    for name, key in _REPORTED:
         x = np.array([getattr(r, key) for r in results], dtype=np.float64)
         mean = float((x * n).sum() / n.sum())
         se = float(x.std(ddof=1) / np.sqrt(x.size)) if x.size > 1 else 0.0

@@ -133,9 +133,8 @@ class Oracle:
     def __init__(self, config: RunConfig, mep_members: int = 0, seed: int | None = None):
         self.config = config
         self.mep = mep_members > 0
-        self.self_play = config.strategy.self_play and not self.mep
         n_p = config.env.n_pursuers
-        if self.self_play:
+        if config.strategy.self_play and not self.mep:
             self.members: list[str] = []
             self.modules = [LEARNER]
             # φ = the learner with certainty, and no separate learner seat: every slot
@@ -158,7 +157,7 @@ class Oracle:
             "fcnet_activation": "tanh",
             "vf_share_layers": False,
             "action_dist": o.action_dist,
-            "proximity": self.features,
+            "proximity": self.config.model_features,
         }
         # Trained modules explore; frozen partners play their mean (oracle/module.py).
         frozen = set(self.modules) - set(trainable)
@@ -312,11 +311,6 @@ class Oracle:
         """Restore trained modules (on resume), learner group and env runners alike."""
         self.algo.learner_group.set_weights(dict(weights))
         _Pushed(self._pushed.phi, self._pushed.salt, dict(weights)).push(self.algo.env_runner_group)
-
-    @property
-    def features(self) -> dict[str, Any] | None:
-        """The modules' proximity features ({"indices", "gain"}), or None."""
-        return self.config.model_features
 
     def export_state(self, state: ModuleState) -> dict[str, Any]:
         """The plain-torch export of an RLlib module state of this Oracle's modules."""
