@@ -7,8 +7,10 @@
    to the machine's own scaling from one busy process to two, measured in the same run.
 2. Oracle: environment steps/s sampled (over the time of each iteration outside the PPO
    update, which the learner times itself) and overall (sampling + PPO update), with the
-   default config's PPO and the paper's
-   (batch 1024, minibatch 256, 20 epochs, 256×256) → the paper's 1e6-step oracle in minutes.
+   default config's PPO and the paper's (batch 1024, minibatch 256, 20 epochs, 256×256)
+   → the paper's 1e6-step oracle in minutes; each with the batched env runner
+   (`oracle.sampler: batched`, the default) and RLlib's step-by-step PettingZoo path
+   (`oracle.sampler: pettingzoo`), measured in the same run.
 3. One generation of the default config end to end, broken into pre-train, oracle,
    grapher and coordinator wall time.
 """
@@ -18,6 +20,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
+import json
 import multiprocessing
 import statistics
 import tempfile
@@ -27,7 +30,7 @@ from pathlib import Path
 import ray
 import torch
 
-from hola_ray.methods.config import RunConfig
+from hola_ray.methods.config import SAMPLERS, RunConfig
 from hola_ray.oracle import Oracle
 from hola_ray.policies.learned import FORMAT
 from hola_ray.population.grapher import evaluate_edges
@@ -112,7 +115,9 @@ def grapher_speed(config: RunConfig, members: int, episodes: int, rounds: int) -
     return out
 
 
-def oracle_speed(config: RunConfig, label: str, steps: int) -> dict[str, float]:
+def oracle_speed(config: RunConfig, label: str, steps: int, sampler: str) -> dict[str, float]:
+    config = dataclasses.replace(config, oracle=dataclasses.replace(config.oracle, sampler=sampler))
+    label = f"{label}_{sampler}"
     oracle = Oracle(config)
     try:
         oracle.train(config.oracle.train_batch, progress=False)  # warm-up iteration
@@ -160,20 +165,52 @@ def main() -> None:
     steps = 10_000 if args.quick else 40_000
     print("Grapher (default networks, full-length episodes):")
     if args.quick:
-        grapher_speed(default, members=5, episodes=16, rounds=1)
+        grapher = grapher_speed(default, members=5, episodes=16, rounds=1)
     else:
-        grapher_speed(default, members=6, episodes=32, rounds=3)
+        grapher = grapher_speed(default, members=6, episodes=32, rounds=3)
     print("Oracle:")
-    oracle_speed(default, "default", steps)
-    oracle_speed(paper, "paper", steps // 2 if args.quick else steps)
+    paper_steps = steps // 2 if args.quick else steps
+    oracle = {}
+    for sampler in SAMPLERS:
+        oracle.update(oracle_speed(default, "default", steps, sampler))
+        oracle.update(oracle_speed(paper, "paper", paper_steps, sampler))
     print("Generation (default config, shortened budgets):")
     short = dataclasses.replace(
         default,
         oracle=dataclasses.replace(default.oracle, env_steps=steps),
         pretrain=dataclasses.replace(default.pretrain, env_steps=steps),
     )
-    generation_breakdown(short)
+    parts = generation_breakdown(short)
     ray.shutdown()
+    batched, previous = "batched", "pettingzoo"
+    summary = {
+        "oracle_sampled_env_steps_per_s": oracle[f"oracle_sampled_steps_per_s_default_{batched}"],
+        "oracle_overall_env_steps_per_s": oracle[f"oracle_env_steps_per_s_default_{batched}"],
+        "paper_oracle_overall_env_steps_per_s": oracle[f"oracle_env_steps_per_s_paper_{batched}"],
+        "minutes_per_1e6_paper_oracle": oracle[f"oracle_1e6_minutes_paper_{batched}"],
+        "pettingzoo_path_sampled_env_steps_per_s": oracle[
+            f"oracle_sampled_steps_per_s_default_{previous}"
+        ],
+        "pettingzoo_path_overall_env_steps_per_s": oracle[
+            f"oracle_env_steps_per_s_default_{previous}"
+        ],
+        "pettingzoo_path_minutes_per_1e6_paper_oracle": oracle[
+            f"oracle_1e6_minutes_paper_{previous}"
+        ],
+        **grapher,
+        **{f"generation_{k}": v for k, v in parts.items()},
+    }
+    summary["sampling_speedup"] = (
+        summary["oracle_sampled_env_steps_per_s"]
+        / summary["pettingzoo_path_sampled_env_steps_per_s"]
+    )
+    print(
+        f"  → batched env runner / PettingZoo path, default PPO: sampled "
+        f"{summary['sampling_speedup']:.1f}×; paper PPO 1e6 steps in "
+        f"{summary['minutes_per_1e6_paper_oracle']:.1f} min "
+        f"(PettingZoo path {summary['pettingzoo_path_minutes_per_1e6_paper_oracle']:.1f} min)"
+    )
+    print(json.dumps({k: round(v, 4) for k, v in summary.items()}))
 
 
 if __name__ == "__main__":

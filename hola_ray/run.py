@@ -36,6 +36,7 @@ DEFAULT: dict[str, Any] = {
         "epochs": 10,
         "lr": 1e-3,
         "entropy_coef": 0.0,
+        "vf_coef": 0.5,
         "hidden": [64, 64],
         "envs_per_runner": 16,
     },

@@ -21,6 +21,9 @@ from hola_ray.env.config import ConfigError, PursuitConfig, consume_fields, requ
 from hola_ray.env.layout import ObsLayout
 from hola_ray.policies.learned import DISTRIBUTIONS, export_from_rllib
 
+SAMPLERS = ("batched", "pettingzoo")
+"""oracle.sampler: how the Oracle's env runners sample (OracleConfig.sampler)."""
+
 
 @dataclass(frozen=True)
 class Method:
@@ -109,6 +112,10 @@ class OracleConfig:
     """RLlib env runner actors; on 2 CPUs one runner with many vector envs samples fastest"""
     envs_per_runner: int = 16
     """vectorised environments in each env runner"""
+    sampler: str = "batched"
+    """how env runners sample: batched (hola_ray/oracle/batched_runner.py: every vector env
+    in one compiled step, one forward pass per module, episodes built in bulk) or
+    pettingzoo (RLlib's MultiAgentEnvRunner over the PettingZoo env, step by step)"""
 
     def validate(self) -> None:
         s = "oracle"
@@ -131,6 +138,12 @@ class OracleConfig:
         _finite(s, self, "vf_clip", 1e-3, 1e12, "in [0.001, 1e12]")
         _finite(s, self, "grad_clip", 0.0, 1e6, "in [0, 1e6] (0 = none)")
         _finite(s, self, "proximity_length", 0.0, 10.0, "in [0, 10] (0 = off)")
+        require(
+            self.sampler in SAMPLERS,
+            "oracle.sampler",
+            f"one of {', '.join(SAMPLERS)}",
+            self.sampler,
+        )
         require(
             self.action_dist in DISTRIBUTIONS,
             "oracle.action_dist",

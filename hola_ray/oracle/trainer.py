@@ -30,6 +30,7 @@ from hola_ray.env.config import PursuitConfig
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.evaluation.probe import reference_observations
 from hola_ray.methods.config import RunConfig
+from hola_ray.oracle.batched_runner import BatchedEnvRunner
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.mep import OracleLearner
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitCatalog, PursuitPPOModule
@@ -174,6 +175,7 @@ class Oracle:
             PPOConfig()
             .environment(ENV_NAME, env_config=env.to_dict())
             .env_runners(
+                env_runner_cls=BatchedEnvRunner if o.sampler == "batched" else None,
                 num_env_runners=o.env_runners,
                 num_envs_per_env_runner=o.envs_per_runner,
                 rollout_fragment_length="auto",

@@ -1,0 +1,96 @@
+"""Where an Oracle env runner's sampling time goes: cProfile inside the env runner actor.
+
+    python benchmarks/profile_sampling.py [--steps 40000] [--top 14]
+
+For each `oracle.sampler` (batched, pettingzoo) the default run's Oracle is built, warmed
+up with one training iteration, and then the remote env runner profiles its own
+`sample()` calls over `--steps` env steps (no learner update in between). Printed per
+sampler: env steps/s inside the profiler, and the functions with the most time of their own
+(tottime), grouped under short names. cProfile's overhead slows Python-heavy code most, so
+the rates here are below `benchmarks/service_speed.py`'s; the shares are what it is for.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import dataclasses
+import io
+import json
+import pstats
+import time
+
+import ray
+
+from hola_ray.methods.config import SAMPLERS, RunConfig
+from hola_ray.oracle import Oracle
+from hola_ray.run import DEFAULT
+
+
+def profile_runner(runner, steps: int, top: int) -> dict:
+    per_call = runner.config.train_batch_size_per_learner
+    profiler = cProfile.Profile()
+    done = 0
+    start = time.perf_counter()
+    profiler.enable()
+    while done < steps:
+        episodes = runner.sample(num_timesteps=per_call)
+        done += sum(len(ep) for ep in episodes)
+    profiler.disable()
+    wall = time.perf_counter() - start
+    stream = io.StringIO()
+    stats = pstats.Stats(profiler, stream=stream)
+    rows = []
+    total = sum(v[2] for v in stats.stats.values())
+    for (path, line, name), (_, ncalls, tottime, cumtime, _) in sorted(
+        stats.stats.items(), key=lambda kv: -kv[1][2]
+    )[:top]:
+        short = path.split("site-packages/")[-1].split("/work/main/")[-1]
+        rows.append(
+            {
+                "function": f"{short}:{line}({name})",
+                "calls": ncalls,
+                "tottime_s": round(tottime, 3),
+                "share": round(tottime / total, 3),
+            }
+        )
+    return {"env_steps": done, "wall_s": wall, "rows": rows}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--steps", type=int, default=40_000)
+    parser.add_argument("--top", type=int, default=14)
+    args = parser.parse_args()
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
+    default = RunConfig.from_dict(DEFAULT)
+    summary = {}
+    for sampler in SAMPLERS:
+        config = dataclasses.replace(
+            default, oracle=dataclasses.replace(default.oracle, sampler=sampler)
+        )
+        oracle = Oracle(config)
+        try:
+            oracle.train(config.oracle.train_batch, progress=False)  # compile, warm up
+            (result,) = oracle.algo.env_runner_group.foreach_env_runner(
+                lambda r: profile_runner(r, args.steps, args.top), local_env_runner=False
+            )
+        finally:
+            oracle.stop()
+        rate = result["env_steps"] / result["wall_s"]
+        summary[f"{sampler}_profiled_env_steps_per_s"] = round(rate)
+        print(
+            f"sampler {sampler}: {result['env_steps']:,} env steps in {result['wall_s']:.1f} s "
+            f"under cProfile ({rate:,.0f} steps/s, {1e6 / rate:.0f} µs per env step)"
+        )
+        for row in result["rows"]:
+            print(
+                f"  {row['share']:6.1%}  {row['tottime_s']:7.2f} s  {row['calls']:>9}  "
+                f"{row['function']}"
+            )
+    ray.shutdown()
+    print(json.dumps(summary))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,224 @@
+"""The batched env runner against the reference path: its episodes replay exactly in
+`PursuitEnv` and equal the episodes RLlib's own bookkeeping (`MultiAgentEpisode.add_env_step`,
+as `MultiAgentEnvRunner` does it) builds from that replay, chunk cuts included; and a runner
+RLlib recreates samples partners from the pushed φ again. One Ray session for the module."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections import defaultdict
+
+import numpy as np
+import pytest
+import ray
+from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
+
+from hola_ray.env.pettingzoo_env import PursuitEnv
+from hola_ray.methods.config import RunConfig
+from hola_ray.oracle import LEARNER, Oracle, member_module
+
+CONFIG = RunConfig.from_dict(
+    {
+        "env": {"horizon": 50, "reward": {"obstacle_penalty": 0.5, "teammate_penalty": 0.5}},
+        "oracle": {
+            "hidden": [16, 16],
+            "train_batch": 300,
+            "minibatch": 100,
+            "epochs": 1,
+            "envs_per_runner": 6,
+            "env_steps": 300,
+            "sampler": "batched",
+        },
+        "population": {"max_size": 3, "initial_size": 3, "top_m": 1},
+    }
+)
+# The helpers below run inside the env runner actors, which cannot import this test file.
+ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
+COLUMNS = ("obs", "actions", "rewards", "action_dist_inputs", "action_logp")
+
+
+@pytest.fixture(scope="module")
+def oracle(ray_session):
+    o = Oracle(CONFIG)
+    o.train(300, progress=False)
+    yield o
+    o.stop()
+
+
+def sample_chunks(runner, calls: int, steps: int):
+    """`calls` successive samples of `steps` env steps each, from fresh episodes: per
+    episode id, its chunks in order as plain data (episodes are not sent back whole)."""
+    out = defaultdict(list)
+    for k in range(calls):
+        for ep in runner.sample(num_timesteps=steps, force_reset=k == 0):
+            ep.validate()
+            agents = {}
+            for aid, sa in ep.agent_episodes.items():
+                n = len(sa)
+                agents[aid] = {
+                    "module": sa.module_id,
+                    "t_started": sa.t_started,
+                    "terminated": sa.is_terminated,
+                    "truncated": sa.is_truncated,
+                    "obs": np.asarray(sa.get_observations(slice(0, n + 1))),
+                    "actions": np.asarray(sa.get_actions(slice(0, n))),
+                    "rewards": np.asarray(sa.get_rewards(slice(0, n))),
+                    "action_dist_inputs": np.asarray(
+                        sa.get_extra_model_outputs("action_dist_inputs", slice(0, n))
+                    ),
+                    "action_logp": np.asarray(
+                        sa.get_extra_model_outputs("action_logp", slice(0, n))
+                    ),
+                }
+            out[ep.id_].append(
+                {
+                    "seed": ep.custom_data.get("seed"),
+                    "env_t_started": ep.env_t_started,
+                    "env_t": ep.env_t,
+                    "len": len(ep),
+                    "done": ep.is_done,
+                    "terminated": ep.is_terminated,
+                    "truncated": ep.is_truncated,
+                    "return": ep.get_return(),
+                    "agents": agents,
+                }
+            )
+    return dict(out)
+
+
+def joined(chunks):
+    """One agent's data over an episode's chunks, in order."""
+    agents = defaultdict(lambda: defaultdict(list))
+    for chunk in chunks:
+        for aid, data in chunk["agents"].items():
+            cols = agents[aid]
+            cols["obs"].append(data["obs"] if not cols["obs"] else data["obs"][1:])
+            for col in COLUMNS[1:]:
+                cols[col].append(data[col])
+            cols["module"], cols["terminated"] = data["module"], data["terminated"]
+            cols["truncated"] = data["truncated"]
+    return {
+        aid: {k: (np.concatenate(v) if isinstance(v, list) else v) for k, v in cols.items()}
+        for aid, cols in agents.items()
+    }
+
+
+def replay(seed: int, actions: dict[str, np.ndarray], dist_inputs, logp, modules):
+    """The episode of `seed` played in `PursuitEnv` with the recorded actions (RLlib's
+    [−1, 1], unsquashed onto the Box as RLlib does), recorded the way RLlib's
+    `MultiAgentEnvRunner` records it; and the env's end-of-episode infos."""
+    env = PursuitEnv(CONFIG.env)
+    obs, infos = env.reset(seed=seed)
+    episode = MultiAgentEpisode(agent_module_ids=modules)
+    episode.add_env_reset(observations=obs, infos=infos)
+    step = 0
+    while env.agents:
+        live = list(env.agents)
+        act = {a: actions[a][step] for a in live}
+        to_env = {a: np.clip((act[a] + 1.0) / 2.0, 0.0, 1.0) for a in live}
+        obs, rewards, terms, truncs, infos = env.step(to_env)
+        extra = {
+            a: {"action_dist_inputs": dist_inputs[a][step], "action_logp": logp[a][step]}
+            for a in live
+        }
+        # as RLlib's ParallelPettingZooEnv wrapper reports the episode's end
+        terms["__all__"] = all(terms.values())
+        truncs["__all__"] = all(truncs.values())
+        episode.add_env_step(
+            observations=obs,
+            actions=act,
+            rewards=rewards,
+            infos=infos,
+            terminateds=terms,
+            truncateds=truncs,
+            extra_model_outputs=extra,
+        )
+        step += 1
+        end_infos = infos
+    return episode.to_numpy(), end_infos
+
+
+def test_episodes_replay_in_pursuit_env_and_match_rllibs_bookkeeping(oracle):
+    oracle.set_phi({member_module(0): 1.0, member_module(2): 2.0})
+    # 6 envs × 25 steps per call with a 50-step horizon: most episodes span 2–3 chunks
+    runs = oracle.algo.env_runner_group.foreach_env_runner(
+        lambda r: sample_chunks(r, calls=8, steps=150), local_env_runner=False
+    )
+    episodes = {k: v for run in runs for k, v in run.items()}
+    finished = {k: v for k, v in episodes.items() if v[-1]["done"]}
+    assert len(finished) >= 12
+    assert sum(len(v) > 1 for v in finished.values()) >= 6  # cut and continued
+    outcomes = set()
+    for chunks in finished.values():
+        starts = [c["env_t_started"] for c in chunks]
+        ends = [c["env_t"] for c in chunks]
+        assert starts[0] == 0 and starts[1:] == ends[:-1]  # chunks tile the episode
+        assert not any(c["done"] for c in chunks[:-1])
+        data = joined(chunks)
+        modules = {aid: d["module"] for aid, d in data.items()}
+        assert sorted(modules.values()).count(LEARNER) == 1
+        ref, infos = replay(
+            chunks[0]["seed"],
+            {a: d["actions"] for a, d in data.items()},
+            {a: d["action_dist_inputs"] for a, d in data.items()},
+            {a: d["action_logp"] for a, d in data.items()},
+            modules,
+        )
+        assert sum(c["len"] for c in chunks) == len(ref)
+        assert chunks[-1]["terminated"] == ref.is_terminated
+        assert chunks[-1]["truncated"] == ref.is_truncated
+        total = sum(c["return"] for c in chunks)
+        np.testing.assert_allclose(total, ref.get_return(), rtol=1e-6)
+        any_info = next(iter(infos.values()))
+        np.testing.assert_allclose(total, any_info["team_return"], rtol=1e-6)
+        assert len(ref) == any_info["length"]
+        outcomes.add((any_info["success"], any_info["collision"], ref.is_truncated))
+        assert set(ref.agent_episodes) == set(data)
+        for aid, sa in ref.agent_episodes.items():
+            n = len(sa)
+            mine = data[aid]
+            assert sa.module_id == mine["module"]
+            assert (sa.is_terminated, sa.is_truncated) == (mine["terminated"], mine["truncated"])
+            np.testing.assert_array_equal(sa.get_observations(slice(0, n + 1)), mine["obs"])
+            np.testing.assert_array_equal(sa.get_actions(slice(0, n)), mine["actions"])
+            np.testing.assert_allclose(sa.get_rewards(slice(0, n)), mine["rewards"], rtol=1e-12)
+            for col in ("action_dist_inputs", "action_logp"):
+                np.testing.assert_array_equal(
+                    sa.get_extra_model_outputs(col, slice(0, n)), mine[col]
+                )
+    # the comparison covered episodes that ended in different ways
+    assert len(outcomes) >= 2
+
+
+def test_a_recreated_runner_samples_partners_from_the_pushed_phi(oracle):
+    target = member_module(1)
+    oracle.set_phi({target: 1.0}, salt=3)
+    group = oracle.algo.env_runner_group
+    (worker_id,) = group.healthy_worker_ids()
+    actor = group._worker_manager.actors()[worker_id]
+
+    def die(runner):
+        os._exit(1)
+
+    # The runner dies during a call, as in a crash mid-sample: RLlib takes it out of service.
+    group.foreach_env_runner(die, local_env_runner=False)
+    assert worker_id not in group.healthy_worker_ids()
+    for _ in range(240):  # Ray restarts the actor process in the background
+        try:
+            ray.get(actor.apply.remote(lambda r: None), timeout=10)
+            break
+        except ray.exceptions.RayError:
+            time.sleep(0.5)
+    # The next training iteration brings it back into service (RLlib's restore and its
+    # on_env_runners_recreated callback), then samples from it.
+    oracle.train(300, progress=False)
+    assert worker_id in group.healthy_worker_ids()
+
+    def modules(runner):
+        eps = runner.sample(num_timesteps=600, force_reset=True)
+        return [ep.module_for(a) for ep in eps for a in ep.agent_ids]
+
+    (seen,) = group.foreach_env_runner(modules, local_env_runner=False)
+    assert seen and set(seen) == {LEARNER, target}
