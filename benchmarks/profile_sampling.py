@@ -1,6 +1,6 @@
 """Where an Oracle env runner's sampling time goes: cProfile inside the env runner actor.
 
-    python benchmarks/profile_sampling.py [--steps 40000] [--top 14]
+    python benchmarks/profile_sampling.py [--steps 40000] [--top 14] [--sampler batched]
 
 For each `oracle.sampler` (batched, pettingzoo) the default run's Oracle is built, warmed
 up with one training iteration, and then the remote env runner profiles its own
@@ -61,11 +61,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=40_000)
     parser.add_argument("--top", type=int, default=14)
+    parser.add_argument("--sampler", choices=SAMPLERS, help="profile only this sampler")
     args = parser.parse_args()
     ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     default = RunConfig.from_dict(DEFAULT)
     summary = {}
-    for sampler in SAMPLERS:
+    for sampler in [args.sampler] if args.sampler else SAMPLERS:
         config = dataclasses.replace(
             default, oracle=dataclasses.replace(default.oracle, sampler=sampler)
         )

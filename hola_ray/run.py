@@ -38,7 +38,7 @@ DEFAULT: dict[str, Any] = {
         "entropy_coef": 0.0,
         "vf_coef": 0.5,
         "hidden": [64, 64],
-        "envs_per_runner": 16,
+        "envs_per_runner": 64,
     },
     "pretrain": {"env_steps": 100_000, "alpha": 0.05},
     "population": {"max_size": 6, "initial_size": 4, "top_m": 3},

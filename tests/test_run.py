@@ -146,6 +146,8 @@ def test_sigkill_mid_generation_then_resume_loses_nothing(tmp_path):
         ({"population": {"max_size": 2}}, "population.max_size"),
         ({"oracle": {"env_steps": -1}}, "oracle.env_steps"),
         ({"oracle": {"action_dist": "normal"}}, "oracle.action_dist"),
+        ({"oracle": {"sampler": "fast"}}, "oracle.sampler"),
+        ({"oracle": {"gpus_per_learner": -1}}, "oracle.gpus_per_learner"),
         ({"env": {"reward": {"collision": -10}}}, "reward.collision"),
         ({"env": {"reward": {"teammate_distance": 0}}}, "reward.teammate_distance"),
         ({"env": {"reward": {"capture": "10"}}}, "reward.capture"),

@@ -112,6 +112,9 @@ class OracleConfig:
     """RLlib env runner actors; on 2 CPUs one runner with many vector envs samples fastest"""
     envs_per_runner: int = 16
     """vectorised environments in each env runner"""
+    gpus_per_learner: float = 0.0
+    """GPUs for the PPO learner (RLlib's num_gpus_per_learner); 0 = the learner runs on the
+    CPU in the driver. A GPU speeds up the paper's 256×256 update; sampling stays on CPUs"""
     sampler: str = "batched"
     """how env runners sample: batched (hola_ray/oracle/batched_runner.py: every vector env
     in one compiled step, one forward pass per module, episodes built in bulk) or
@@ -138,6 +141,7 @@ class OracleConfig:
         _finite(s, self, "vf_clip", 1e-3, 1e12, "in [0.001, 1e12]")
         _finite(s, self, "grad_clip", 0.0, 1e6, "in [0, 1e6] (0 = none)")
         _finite(s, self, "proximity_length", 0.0, 10.0, "in [0, 10] (0 = off)")
+        _finite(s, self, "gpus_per_learner", 0.0, 64.0, "in [0, 64] (0 = CPU)")
         require(
             self.sampler in SAMPLERS,
             "oracle.sampler",

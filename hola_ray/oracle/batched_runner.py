@@ -111,6 +111,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         if random_actions:
             raise NotImplementedError("BatchedEnvRunner samples from its modules only")
         B = self.num_envs
+        for mid in self.module.keys():
+            self.module[mid].eval()  # they only act here; PPO trains the learner's copies
         if force_reset or num_episodes is not None or self._needs_initial_reset:
             self._ongoing_episodes_for_metrics.clear()
             self._start(np.ones(B, dtype=bool))
@@ -185,11 +187,13 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 buf.module_steps[mid] += len(rows)
                 module = self.module[mid]
                 batch = {Columns.OBS: torch.from_numpy(obs[rows])}
+                # What `forward_exploration` / `forward_inference` run, without their
+                # train → eval → train switch per call (the modules are in eval mode)
                 if explore:
-                    out = module.forward_exploration(batch)
+                    out = module._forward_exploration(batch)
                     dist_cls = module.get_exploration_action_dist_cls()
                 else:
-                    out = module.forward_inference(batch)
+                    out = module._forward_inference(batch)
                     dist_cls = module.get_inference_action_dist_cls()
                 din = out[Columns.ACTION_DIST_INPUTS]
                 if Columns.ACTIONS in out:

@@ -204,6 +204,7 @@ class Oracle:
                 grad_clip_by="global_norm",
             )
             .learners(
+                num_gpus_per_learner=o.gpus_per_learner,
                 learner_class=OracleLearner,
                 learner_config_dict=learner_extra if self.mep else {},
             )
