@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import cProfile
 import dataclasses
-import io
 import json
 import pstats
 import time
@@ -38,11 +37,10 @@ def profile_runner(runner, steps: int, top: int) -> dict:
         done += sum(len(ep) for ep in episodes)
     profiler.disable()
     wall = time.perf_counter() - start
-    stream = io.StringIO()
-    stats = pstats.Stats(profiler, stream=stream)
+    stats = pstats.Stats(profiler)
     rows = []
     total = sum(v[2] for v in stats.stats.values())
-    for (path, line, name), (_, ncalls, tottime, cumtime, _) in sorted(
+    for (path, line, name), (_, ncalls, tottime, _cum, _) in sorted(
         stats.stats.items(), key=lambda kv: -kv[1][2]
     )[:top]:
         short = path.split("site-packages/")[-1].split("/work/main/")[-1]

@@ -80,8 +80,11 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self._episodes: list[_Episode | None] = [None] * self.num_envs
         self._obs_space = self.env.unwrapped.envs[0].unwrapped.get_observation_space(self.agents[0])
         self._act_space = self.env.unwrapped.envs[0].unwrapped.get_action_space(self.agents[0])
-        low, high = self._act_space.low[0], self._act_space.high[0]
-        self._unsquash = (float(low), float(high))
+        self._low = float(self._act_space.low[0])
+        self._high = float(self._act_space.high[0])
+        # who plays each seat of each sub-environment: an index into _module_ids
+        self._seat = np.zeros((self.num_envs, len(self.agents)), dtype=np.int64)
+        self._module_ids: list[str] = []
 
     # ---- episodes -----------------------------------------------------------------------
     def _start(self, mask: np.ndarray) -> None:
@@ -97,6 +100,10 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             stub = SimpleNamespace(id_=eid)
             modules = [mapping(agent, stub) for agent in self.agents]
             self._episodes[b] = _Episode(eid, int(seed), modules, len(self.agents))
+            for i, mid in enumerate(modules):
+                if mid not in self._module_ids:
+                    self._module_ids.append(mid)
+                self._seat[b, i] = self._module_ids.index(mid)
 
     # ---- sampling -----------------------------------------------------------------------
     def _sample(
@@ -133,7 +140,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             buf.obs[s] = self.core.obs
             buf.live[s] = live
             self._act(buf, s, live, explore)
-            low, high = self._unsquash
+            low, high = self._low, self._high
             to_env = low + (buf.actions[s, :, :, 0] + 1.0) * (0.5 * (high - low))
             result = self.core.step(np.clip(to_env, low, high))
             buf.next_obs[s] = result.obs
@@ -171,19 +178,15 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
     def _act(self, buf: _Buffers, s: int, live: np.ndarray, explore: bool) -> None:
         """Actions, log-probabilities and distribution inputs for every live agent at row s,
         one forward pass per module."""
-        n_p = len(self.agents)
-        by_module: dict[str, list[int]] = defaultdict(list)
-        for b in np.flatnonzero(live.any(axis=1)):
-            modules = self._episodes[b].modules
-            for i in range(n_p):
-                if live[b, i]:
-                    by_module[modules[i]].append(b * n_p + i)
+        seat = np.where(live, self._seat, -1).ravel()
         obs = buf.obs[s].reshape(-1, buf.obs.shape[-1])
         actions = buf.actions[s].reshape(-1, 1)
         logp = buf.logp[s].reshape(-1)
         inputs = buf.dist_inputs[s].reshape(-1, buf.dist_inputs.shape[-1])
         with torch.no_grad():
-            for mid, rows in by_module.items():
+            for m in np.unique(seat[seat >= 0]):
+                rows = np.flatnonzero(seat == m)
+                mid = self._module_ids[m]
                 buf.module_steps[mid] += len(rows)
                 module = self.module[mid]
                 batch = {Columns.OBS: torch.from_numpy(obs[rows])}
@@ -275,7 +278,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
     # ---- metrics ------------------------------------------------------------------------
     def _log_steps(self, buf: _Buffers, steps: int) -> None:
         """Env, agent and module step counts of this sample, logged once."""
-        env_steps = int((~buf.idle[:steps]).sum())
+        env_steps = steps * self.num_envs  # an episode that ends is reset at once
         self.metrics.log_value(NUM_ENV_STEPS_SAMPLED, env_steps, reduce="sum")
         self.metrics.log_value(
             NUM_ENV_STEPS_SAMPLED_LIFETIME, env_steps, reduce="lifetime_sum", with_throughput=True
@@ -317,10 +320,6 @@ class _Buffers:
         self.disabled = np.zeros((capacity, B, n_p), bool)
         self.truncated = np.zeros((capacity, B), bool)
         self.module_steps: dict[str, int] = defaultdict(int)
-
-    @property
-    def idle(self) -> np.ndarray:
-        return ~self.live.any(axis=2)
 
     def grow(self) -> None:
         for name in (
