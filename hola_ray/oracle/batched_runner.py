@@ -7,6 +7,14 @@ episodes for the same learner pipeline) but samples all `num_envs_per_env_runner
 with one `BatchedPursuit` step, one forward pass per module over every row that module
 plays, and builds each episode chunk in one go from numpy buffers when `sample` returns.
 
+The forward pass is the module's actor alone, in plain torch: the layers RLlib's module
+holds (read in place, at the start of every `sample`, so pushed and synced weights count),
+run as `MLPPolicy` runs an export (`hola_ray.policies.learned`), with the proximity
+features computed once for all rows. RLlib's `_forward_exploration` also runs the critic's
+encoder, which nothing reads while sampling (PPO's learner recomputes values), and calls
+through a dozen `nn.Module`s per module and step; with the paper's ten partners that was
+three quarters of the sampling time. Modules of other classes take RLlib's own forward.
+
 What it reproduces of the reference path (tested against `MultiAgentEnvRunner`): the
 episodes' observations, actions, rewards, terminations and truncations, the agent → module
 mapping (the runner's `policy_mapping_fn`, called once per agent at the start of every
@@ -44,6 +52,8 @@ from ray.rllib.utils.metrics import (
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
+from hola_ray.oracle.module import FrozenPartnerModule, PursuitPPOModule
+from hola_ray.policies.learned import MLPPolicy, export_from_rllib, proximity_features
 
 SKIP = MultiAgentEpisode.SKIP_ENV_TS_TAG
 
@@ -85,6 +95,10 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         # who plays each seat of each sub-environment: an index into _module_ids
         self._seat = np.zeros((self.num_envs, len(self.agents)), dtype=np.int64)
         self._module_ids: list[str] = []
+        # module id → (module, its actor over the module's own parameter tensors): loading
+        # weights (`set_state`) copies into those tensors, so the actor follows every push
+        self._actors: dict[str, tuple[object, MLPPolicy | None]] = {}
+        self._partners: _PartnerStack | None = None
 
     # ---- episodes -----------------------------------------------------------------------
     def _start(self, mask: np.ndarray) -> None:
@@ -120,6 +134,17 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         B = self.num_envs
         for mid in self.module.keys():
             self.module[mid].eval()  # they only act here; PPO trains the learner's copies
+        for mid in self.module.keys():
+            module = self.module[mid]
+            if self._actors.get(mid, (None,))[0] is not module:
+                self._actors[mid] = (module, self._actor(module))
+        self._partners = _PartnerStack.of(
+            {
+                mid: (module, actor)
+                for mid, (module, actor) in self._actors.items()
+                if isinstance(module, FrozenPartnerModule) and actor is not None
+            }
+        )
         if force_reset or num_episodes is not None or self._needs_initial_reset:
             self._ongoing_episodes_for_metrics.clear()
             self._start(np.ones(B, dtype=bool))
@@ -175,35 +200,48 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             e.live = self.core.pursuer_active[b].copy()
         return chunks
 
+    def _actor(self, module) -> MLPPolicy | None:
+        """The module's actor as a plain-torch `MLPPolicy` over its own parameter tensors
+        (no copy), or None for a module this runner does not know the layout of."""
+        if not isinstance(module, PursuitPPOModule):
+            return None
+        config = module.model_config
+        state = module.state_dict()  # detached views of the parameters
+        export = export_from_rllib(  # shares the module's parameter storage
+            state,
+            activation=config.get("fcnet_activation", "tanh"),
+            dist=config.get("action_dist", "beta"),
+            features=config.get("proximity"),
+        )
+        return MLPPolicy(self._pursuit, export)
+
     def _act(self, buf: _Buffers, s: int, live: np.ndarray, explore: bool) -> None:
-        """Actions, log-probabilities and distribution inputs for every live agent at row s,
-        one forward pass per module."""
+        """Actions, log-probabilities and distribution inputs for every live agent at row s:
+        the frozen partners' rows in one batched forward pass, each other module's rows in
+        one of its own."""
         seat = np.where(live, self._seat, -1).ravel()
         obs = buf.obs[s].reshape(-1, buf.obs.shape[-1])
         actions = buf.actions[s].reshape(-1, 1)
         logp = buf.logp[s].reshape(-1)
         inputs = buf.dist_inputs[s].reshape(-1, buf.dist_inputs.shape[-1])
+        stack = self._partners if explore else None
+        slot_of = stack.slots(self._module_ids) if stack is not None else None
+        x = None  # the observations with the actors' proximity features, for all rows
         with torch.no_grad():
             for m in np.unique(seat[seat >= 0]):
                 rows = np.flatnonzero(seat == m)
                 mid = self._module_ids[m]
                 buf.module_steps[mid] += len(rows)
-                module = self.module[mid]
-                batch = {Columns.OBS: torch.from_numpy(obs[rows])}
-                # What `forward_exploration` / `forward_inference` run, without their
-                # train → eval → train switch per call (the modules are in eval mode)
-                if explore:
-                    out = module._forward_exploration(batch)
-                    dist_cls = module.get_exploration_action_dist_cls()
+                if slot_of is not None and slot_of[m] >= 0:
+                    continue  # a frozen partner: below, with the others
+                actor = self._actors[mid][1]
+                if actor is None:
+                    din, act, lp = self._rllib_forward(self.module[mid], obs[rows], explore)
                 else:
-                    out = module._forward_inference(batch)
-                    dist_cls = module.get_inference_action_dist_cls()
-                din = out[Columns.ACTION_DIST_INPUTS]
-                if Columns.ACTIONS in out:
-                    act = out[Columns.ACTIONS]
-                    lp = out.get(Columns.ACTION_LOGP)
-                else:
-                    dist = dist_cls.from_logits(din)
+                    if x is None:
+                        x = actor.with_features(obs)
+                    din = actor.forward_features(x[rows])
+                    dist = self._dist(self.module[mid], explore).from_logits(din)
                     if not explore:
                         dist = dist.to_deterministic()
                     act = dist.sample()
@@ -211,6 +249,41 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 actions[rows] = act.numpy().reshape(-1, 1)
                 logp[rows] = 0.0 if lp is None else lp.numpy()
                 inputs[rows] = din.numpy()
+            if slot_of is None:
+                return
+            slot = np.where(seat >= 0, slot_of[seat], -1)
+            rows = np.flatnonzero(slot >= 0)
+            if not rows.size:
+                return
+            if x is None:
+                x = stack.with_features(obs)
+            din = stack.logits(x[rows], slot[rows])
+            # as FrozenPartnerModule._forward_exploration: the mean, and no density
+            act = stack.dist_cls.from_logits(din).to_deterministic().sample()
+            actions[rows] = act.numpy().reshape(-1, 1)
+            logp[rows] = 0.0
+            inputs[rows] = din.numpy()
+
+    @staticmethod
+    def _dist(module, explore: bool):
+        if explore:
+            return module.get_exploration_action_dist_cls()
+        return module.get_inference_action_dist_cls()
+
+    def _rllib_forward(self, module, obs: np.ndarray, explore: bool):
+        """RLlib's own forward pass (`_forward_exploration` / `_forward_inference`, without
+        their train → eval → train switch: the modules are in eval mode): distribution
+        inputs, actions, log-probabilities (None: none)."""
+        batch = {Columns.OBS: torch.from_numpy(obs)}
+        out = module._forward_exploration(batch) if explore else module._forward_inference(batch)
+        din = out[Columns.ACTION_DIST_INPUTS]
+        if Columns.ACTIONS in out:
+            return din, out[Columns.ACTIONS], out.get(Columns.ACTION_LOGP)
+        dist = self._dist(module, explore).from_logits(din)
+        if not explore:
+            dist = dist.to_deterministic()
+        act = dist.sample()
+        return din, act, dist.logp(act)
 
     # ---- episode chunks -----------------------------------------------------------------
     def _chunk(self, buf: _Buffers, b: int, stop: int, done: bool) -> MultiAgentEpisode:
@@ -302,6 +375,77 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self.metrics.log_value(NUM_EPISODES, 1, reduce="sum")
         self.metrics.log_value(NUM_EPISODES_LIFETIME, 1, reduce="lifetime_sum")
         self._done_episodes_for_metrics.append(episode)
+
+
+class _PartnerStack:
+    """The frozen partners' actors as one batched forward pass.
+
+    Layer l of every partner is stacked into one [K, out, in] tensor (copied at the start of
+    each `sample`, so pushed weights count); a step's rows are grouped by partner into a
+    [K, G, in] batch, padded to the largest group G, and go through one `baddbmm` per
+    layer. A batched float32 matmul may round the last bit differently from RLlib's per-module
+    one; the actions are the same policies' means to within 1e-6."""
+
+    def __init__(self, ids: list[str], modules: list, actors: list[MLPPolicy]) -> None:
+        self.ids = ids
+        self.dist_cls = modules[0].get_inference_action_dist_cls()
+        self.feature_indices = actors[0].feature_indices
+        self.feature_gain = actors[0].feature_gain
+        self.activation = actors[0].activation
+        depth = len(actors[0].weights)
+        self.weights = [torch.stack([a.weights[k] for a in actors]) for k in range(depth)]
+        self.biases = [torch.stack([a.biases[k] for a in actors])[:, None] for k in range(depth)]
+        self._slots: tuple[int, np.ndarray] = (-1, np.zeros(0, np.int64))
+
+    @classmethod
+    def of(cls, partners: dict[str, tuple[object, MLPPolicy]]) -> _PartnerStack | None:
+        """The stack of these partners, or None when there are none or their actors differ
+        in layout (each then takes its own forward pass)."""
+        if not partners:
+            return None
+        modules = [m for m, _ in partners.values()]
+        actors = [a for _, a in partners.values()]
+        first = actors[0]
+        same = all(
+            [w.shape for w in a.weights] == [w.shape for w in first.weights]
+            and a.activation is first.activation
+            and a.feature_indices == first.feature_indices
+            and a.feature_gain == first.feature_gain
+            and type(m) is type(modules[0])
+            for m, a in zip(modules, actors, strict=True)
+        )
+        return cls(list(partners), modules, actors) if same else None
+
+    def slots(self, module_ids: list[str]) -> np.ndarray:
+        """For each index into the runner's module ids: that partner's slot here, or −1."""
+        if self._slots[0] != len(module_ids):
+            slot = {mid: k for k, mid in enumerate(self.ids)}
+            self._slots = (
+                len(module_ids),
+                np.array([slot.get(mid, -1) for mid in module_ids], np.int64),
+            )
+        return self._slots[1]
+
+    def with_features(self, obs: np.ndarray) -> torch.Tensor:
+        return proximity_features(torch.from_numpy(obs), self.feature_indices, self.feature_gain)
+
+    def logits(self, x: torch.Tensor, slot: np.ndarray) -> torch.Tensor:
+        """Distribution inputs [N, out] of rows x [N, in], row i played by partner slot[i]."""
+        order = np.argsort(slot, kind="stable")
+        grouped = slot[order]
+        counts = np.bincount(grouped, minlength=len(self.ids))
+        rank = np.arange(grouped.size) - (np.cumsum(counts) - counts)[grouped]
+        k, r = torch.from_numpy(grouped), torch.from_numpy(rank)
+        h = x.new_zeros((len(self.ids), int(counts.max()), x.shape[1]))
+        h[k, r] = x[torch.from_numpy(order)]
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            h = torch.baddbmm(b, h, w.transpose(1, 2))
+            if i < last:
+                h = self.activation(h)
+        out = torch.empty((grouped.size, h.shape[-1]), dtype=h.dtype)
+        out[torch.from_numpy(order)] = h[k, r]
+        return out
 
 
 class _Buffers:

@@ -74,6 +74,13 @@ class OracleLearner(PPOTorchLearner):
       in every vector env's episode, the sampled window holds only its frozen partners
       playing on. RLlib's update then fails (no minibatch at all); this learner skips
       that update instead and counts it as `num_skipped_updates`.
+    - Frozen partner modules get no optimizer, and a minibatch's gradient step is one
+      backward pass, one global-norm clip per trained module (RLlib's rule:
+      g · min(1, c / max(‖g‖ + 1e-6, c))) and one fused Adam step. RLlib's own path zeroes,
+      checks and steps an optimizer per module of the population (11 in the paper's
+      setting) and clips tensor by tensor: 2.4× the time of the torch work itself. A
+      minibatch whose gradient is not finite is skipped (counted as
+      `num_nonfinite_gradient_steps`), where RLlib would zero the bad tensors and step.
     """
 
     update_s: float = 0.0
@@ -90,6 +97,48 @@ class OracleLearner(PPOTorchLearner):
             return super().update(*args, training_data=training_data, **kwargs)
         finally:
             self.update_s += time.perf_counter() - start
+
+    def configure_optimizers_for_module(self, module_id, config=None) -> None:
+        if not self.should_module_be_updated(module_id):
+            return  # frozen partners: weights are set, never stepped
+        params = self.get_parameters(self._module[module_id])
+        self.register_optimizer(
+            module_id=module_id,
+            optimizer=torch.optim.Adam(params, fused=True),
+            params=params,
+            lr_or_lr_schedule=config.lr,
+        )
+
+    def _uncompiled_update(self, batch, **kwargs):
+        self._compute_off_policyness(batch)
+        fwd_out = self.module.forward_train(batch)
+        loss_per_module = self.compute_losses(fwd_out=fwd_out, batch=batch)
+        trained = [m for m in loss_per_module if self._module_optimizers.get(m)]
+        if not trained:
+            return fwd_out, loss_per_module, {}
+        for optim in self._optimizer_parameters:
+            optim.zero_grad(set_to_none=True)
+        total = sum(loss_per_module[m] for m in trained)
+        if total.grad_fn is None:
+            return fwd_out, loss_per_module, {}
+        total.backward()
+        for mid in trained:
+            clip = self.config.get_config_for_module(mid).grad_clip
+            for name, optim in self.get_optimizers_for_module(mid):
+                grads = [
+                    p.grad for g in optim.param_groups for p in g["params"] if p.grad is not None
+                ]
+                if not grads:
+                    continue
+                norm = torch.linalg.vector_norm(torch.stack(torch._foreach_norm(grads)))
+                self.metrics.log_value((mid, f"gradients_{name}_global_norm"), norm, window=1)
+                if not torch.isfinite(norm):
+                    self.metrics.log_value((mid, "num_nonfinite_gradient_steps"), 1, reduce="sum")
+                    continue
+                if clip:
+                    torch._foreach_mul_(grads, min(1.0, clip / max(norm.item() + 1e-6, clip)))
+                optim.step()
+        return fwd_out, loss_per_module, {}
 
     def _trains_on(self, episode) -> bool:
         """Whether a (multi-agent) episode chunk holds a step of a module being trained."""

@@ -157,9 +157,15 @@ class MLPPolicy(Policy):
         """The actor's outputs [N, 2]: the action distribution's inputs."""
         if isinstance(obs, np.ndarray) and not obs.flags.writeable:
             obs = obs.copy()  # torch cannot wrap a read-only array
-        x = proximity_features(
-            torch.as_tensor(obs, dtype=torch.float32), self.feature_indices, self.feature_gain
-        )
+        return self.forward_features(self.with_features(torch.as_tensor(obs, dtype=torch.float32)))
+
+    def with_features(self, obs: np.ndarray | torch.Tensor) -> torch.Tensor:
+        """The observations [N, D] with this actor's proximity features appended [N, D']."""
+        return proximity_features(torch.as_tensor(obs), self.feature_indices, self.feature_gain)
+
+    @torch.no_grad()
+    def forward_features(self, x: torch.Tensor) -> torch.Tensor:
+        """`logits` of observations that already carry the proximity features [N, D']."""
         last = len(self.weights) - 1
         for k, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
             x = torch.nn.functional.linear(x, w, b)

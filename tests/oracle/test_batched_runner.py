@@ -222,3 +222,50 @@ def test_a_recreated_runner_samples_partners_from_the_pushed_phi(oracle):
 
     (seen,) = group.foreach_env_runner(modules, local_env_runner=False)
     assert seen and set(seen) == {LEARNER, target}
+
+
+def test_the_partner_stack_plays_each_partners_own_actor():
+    """The frozen partners' batched forward pass gives, row by row, what each partner's own
+    actor (`MLPPolicy`, which equals RLlib's module) gives, for uneven groups and an absent
+    partner."""
+    import torch
+
+    from hola_ray.oracle.batched_runner import _PartnerStack
+    from hola_ray.oracle.distribution import BetaTurn
+    from hola_ray.policies.learned import FORMAT, MLPPolicy
+
+    env = CONFIG.env
+    features = CONFIG.model_features
+    dim = env.obs_dim + len(features["indices"])
+    gen = torch.Generator().manual_seed(0)
+
+    def actor():
+        shapes = [(16, dim), (16, 16), (2, 16)]
+        export = {
+            "format": FORMAT,
+            "dist": "beta",
+            "weights": [torch.randn(s, generator=gen) * 0.5 for s in shapes],
+            "biases": [torch.randn(s[0], generator=gen) * 0.1 for s in shapes],
+            "activation": "tanh",
+            "low": 0.0,
+            "high": 1.0,
+            "features": features,
+        }
+        return MLPPolicy(env, export)
+
+    class Module:
+        @staticmethod
+        def get_inference_action_dist_cls():
+            return BetaTurn
+
+    actors = [actor() for _ in range(4)]
+    stack = _PartnerStack.of({f"m{k}": (Module(), a) for k, a in enumerate(actors)})
+    rng = np.random.default_rng(1)
+    obs = rng.uniform(-1, 1, (40, env.obs_dim)).astype(np.float32)
+    slot = rng.choice([0, 1, 3], size=40, p=[0.6, 0.3, 0.1])  # partner 2 plays no row
+    got = stack.logits(stack.with_features(obs), slot)
+    for k, a in enumerate(actors):
+        rows = slot == k
+        np.testing.assert_allclose(got[rows].numpy(), a.logits(obs[rows]).numpy(), atol=1e-6)
+    # index of a runner's module ids → slot (−1: not a partner)
+    assert stack.slots(["learner", "m3", "m0"]).tolist() == [-1, 3, 0]

@@ -284,3 +284,56 @@ def test_train_splits_its_time_into_sampling_and_the_learner_update(oracle):
     # (RLlib's own timers are moving averages and could exceed it).
     assert 0 < stats.learn_s < stats.wall_s
     assert stats.sample_s == pytest.approx(stats.wall_s - stats.learn_s)
+
+
+def test_the_lean_gradient_step_equals_rllibs_and_frozen_partners_have_no_optimizer(oracle):
+    """OracleLearner's minibatch step (one backward, RLlib's global-norm clip, the Adam step)
+    moves the learner's weights exactly as RLlib's TorchLearner path does from the same
+    weights and optimizer state; population members are never stepped."""
+    import copy
+
+    from ray.rllib.core.learner.torch.torch_learner import TorchLearner
+
+    learner = oracle.algo.learner_group._learner
+    assert all(not learner.get_optimizers_for_module(m) for m in oracle.members)
+    module = learner.module[LEARNER]
+    rng = np.random.default_rng(3)
+    n = 128
+    batch = {
+        LEARNER: {
+            "obs": torch.as_tensor(
+                rng.uniform(-1, 1, (n, CONFIG.env.obs_dim)), dtype=torch.float32
+            ),
+            "actions": torch.as_tensor(rng.uniform(-0.9, 0.9, (n, 1)), dtype=torch.float32),
+            "action_logp": torch.as_tensor(rng.normal(0, 0.3, n), dtype=torch.float32),
+            "action_dist_inputs": torch.as_tensor(rng.normal(0, 1, (n, 2)), dtype=torch.float32),
+            # large advantages and targets: the gradient's norm is far above the clip
+            "advantages": torch.as_tensor(rng.normal(0, 50, n), dtype=torch.float32),
+            "value_targets": torch.as_tensor(rng.normal(0, 50, n), dtype=torch.float32),
+        }
+    }
+    ((_, optim),) = learner.get_optimizers_for_module(LEARNER)
+    params0 = copy.deepcopy(module.state_dict())
+    optim0 = copy.deepcopy(optim.state_dict())
+
+    def step(update) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:
+        """The weights after one step and the (clipped) gradients it applied."""
+        module.load_state_dict(params0)
+        optim.load_state_dict(copy.deepcopy(optim0))
+        update(learner, batch)
+        weights = {k: v.clone() for k, v in module.state_dict().items()}
+        grads = {k: p.grad.clone() for k, p in module.named_parameters() if p.grad is not None}
+        return weights, grads
+
+    lean, lean_grads = step(type(learner)._uncompiled_update)
+    norm = learner.metrics.peek((LEARNER, "gradients_default_optimizer_global_norm"))
+    assert float(norm) > 10 * CONFIG.oracle.grad_clip  # the clip did act
+    rllib, rllib_grads = step(TorchLearner._uncompiled_update)
+    assert max(float((lean[k] - params0[k]).abs().max()) for k in lean) > 1e-5
+    assert lean_grads.keys() == rllib_grads.keys() and lean_grads
+    clipped = torch.sqrt(sum((g.double() ** 2).sum() for g in lean_grads.values()))
+    assert float(clipped) == pytest.approx(CONFIG.oracle.grad_clip, rel=1e-5)
+    for k in lean_grads:
+        np.testing.assert_allclose(lean_grads[k], rllib_grads[k], rtol=1e-6, atol=1e-9, err_msg=k)
+    for k in lean:
+        np.testing.assert_allclose(lean[k].numpy(), rllib[k].numpy(), rtol=0, atol=1e-7, err_msg=k)
