@@ -1,7 +1,14 @@
 """Watch an episode: `python -m hola_ray.replay --team vicsek vicsek greedy --seed 3`.
 
+A team mixes anything that plays: hand-written policies by name (greedy, vicsek,
+apf-a-0 … apf-a-23), pool members by id (ppo-1, ppo-2, d3qn-g-1, d3qn-g-2; loaded from
+the committed pools, hashes checked), and learned policies by path (a run directory's
+learner.pt, or an exported .pt file), e.g.
+
+    python -m hola_ray.replay --team runs/x/learner.pt d3qn-g-1 vicsek
+
 Writes an animated GIF and a PNG of the trajectories (arena, obstacles, capture and
-collision marks) and prints the episode's metrics.
+collision marks, a legend naming each seat's policy) and prints the episode's metrics.
 """
 
 from __future__ import annotations
@@ -12,7 +19,35 @@ from pathlib import Path
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.render import animate_trajectory, plot_trajectory
 from hola_ray.evaluation.trajectory import record
+from hola_ray.policies.base import Policy
 from hola_ray.policies.registry import make_policy, policy_names
+
+
+def resolve(name: str, config: PursuitConfig) -> Policy:
+    """A policy by registry name, pool member id, run directory or exported file."""
+    from hola_ray.policies.learned import MLPPolicy
+    from hola_ray.pools import MEMBERS, POOLS, load_pool
+
+    if name.lower() in policy_names():
+        return make_policy(name, config)
+    if name in MEMBERS:
+        pool = next(p for p, ids in POOLS.items() if name in ids)
+        return load_pool(pool, config)[name]
+    path = Path(name)
+    file = path / "learner.pt" if path.is_dir() else path
+    if file.is_file():
+        import torch
+
+        export = torch.load(file, map_location="cpu", weights_only=True)
+        if str(export.get("format", "")).startswith("hola_ray.d3qn"):
+            from hola_ray.policies.d3qn import D3QNG
+
+            return D3QNG(config, export, name=path.stem)
+        return MLPPolicy(config, export, name=path.name if path.is_dir() else path.stem)
+    raise ValueError(
+        f"unknown policy {name!r}: give a registry name ({', '.join(policy_names()[:2])}, "
+        f"apf-a-0…23), a pool member ({', '.join(MEMBERS)}), a run directory or a .pt file"
+    )
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -21,8 +56,9 @@ def main(argv: list[str] | None = None) -> None:
         "--team",
         nargs="+",
         default=["vicsek"],
-        help="policy per pursuer slot (one name fills every slot); known: "
-        f"{', '.join(policy_names()[:2])}, apf-a-0..apf-a-23",
+        help="policy per pursuer slot (one fills every slot): a registry name "
+        f"({', '.join(policy_names()[:2])}, apf-a-0..apf-a-23), a pool member id "
+        "(ppo-1, d3qn-g-1 …), a run directory or an exported .pt file",
     )
     parser.add_argument(
         "--config", type=Path, help="YAML with the pursuit config (or an env: section)"
@@ -39,11 +75,14 @@ def main(argv: list[str] | None = None) -> None:
     names = args.team * config.n_pursuers if len(args.team) == 1 else args.team
     if len(names) != config.n_pursuers:
         parser.error(f"--team needs 1 or {config.n_pursuers} names, got {len(names)}")
-    team = [make_policy(name, config) for name in names]
+    try:
+        team = [resolve(name, config) for name in names]
+    except (ValueError, RuntimeError) as err:
+        parser.error(str(err))
     traj = record(config, team, seed=args.seed)
 
     args.out.mkdir(parents=True, exist_ok=True)
-    stem = f"{'-'.join(names)}_seed{args.seed}"
+    stem = f"{'-'.join(Path(n).stem for n in names)}_seed{args.seed}"
     png = args.out / f"{stem}.png"
     gif = args.out / f"{stem}.gif"
     plot_trajectory(config, traj, str(png))

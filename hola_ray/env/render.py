@@ -119,12 +119,23 @@ def animate_trajectory(
     trails = [ax.plot([], [], "-", color=_colour(PURSUER_COLOURS, i), lw=1)[0] for i in range(n_p)]
     trails += [ax.plot([], [], "-", color=_colour(EVADER_COLOURS, e), lw=1)[0] for e in range(n_e)]
     pursuers = [
-        ax.plot([], [], "o", color=_colour(PURSUER_COLOURS, i), ms=7)[0] for i in range(n_p)
+        ax.plot([], [], "o", color=_colour(PURSUER_COLOURS, i), ms=7, label=f"P{i} {name}")[0]
+        for i, name in enumerate(traj.policy_names)
     ]
     evaders = [ax.plot([], [], "^", color=_colour(EVADER_COLOURS, e), ms=7)[0] for e in range(n_e)]
     capture_marks = ax.plot([], [], "*", color="gold", mec="black", ms=14, ls="")[0]
     crash_marks = ax.plot([], [], "X", color="black", ms=10, ls="")[0]
     title = ax.set_title("", fontsize=9)
+    # which policy plays each seat
+    ax.legend(
+        handles=pursuers,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        ncol=3,
+        fontsize=6,
+        frameon=False,
+    )
+    fig.subplots_adjust(bottom=0.1)
     tail = 60
     steps = list(range(0, traj.steps + 1, stride))
     if steps[-1] != traj.steps:

@@ -9,7 +9,8 @@ import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
-from hola_ray.evaluation.stats import episode_seeds, mean_and_se
+from hola_ray.evaluation.stats import episode_seeds as derive_seeds
+from hola_ray.evaluation.stats import mean_and_se
 from hola_ray.policies.base import Policy
 
 
@@ -44,6 +45,7 @@ def rollout(
     assignment: np.ndarray | None = None,
     seed: int = 0,
     batch_size: int = 1024,
+    episode_seeds: np.ndarray | None = None,
 ) -> RolloutResult:
     """Play `episodes` episodes to their end and collect their metrics.
 
@@ -52,6 +54,8 @@ def rollout(
     assignment: [episodes, n_pursuers] ints, the policy of each slot in each episode.
     seed: the run seed; episode i always gets the same derived seed for a given run seed.
     batch_size: most episodes simulated at once.
+    episode_seeds: [episodes] explicit episode seeds instead of those derived from `seed`
+        (to replay the same episodes with different teams).
     """
     n_p = config.n_pursuers
     if episodes < 1:
@@ -68,7 +72,12 @@ def rollout(
     if assignment.min() < 0 or assignment.max() >= len(policies):
         raise ValueError(f"assignment indexes policies 0..{len(policies) - 1} only")
 
-    seeds = episode_seeds(seed, episodes)
+    if episode_seeds is None:
+        seeds = derive_seeds(seed, episodes)
+    else:
+        seeds = np.asarray(episode_seeds)
+        if seeds.shape != (episodes,):
+            raise ValueError(f"episode_seeds must have shape {(episodes,)}, got {seeds.shape}")
     parts = []
     for start in range(0, episodes, batch_size):
         stop = min(start + batch_size, episodes)

@@ -1,9 +1,24 @@
-"""APF-A: the DACOOP artificial potential field with attention (SPEC §3).
+"""APF-A: the artificial potential field of DACOOP-A (Zhang et al., RA-L 2023) (SPEC §3).
 
-Force = unit attraction to the target evader + obstacle repulsion scaled by η + the mean
-inter-pursuer force scaled by λ; when attraction and repulsion oppose, the pursuer follows
-the obstacle's tangent. The 24 (λ, η) pairs are 8 λ × 3 η, converted from DACOOP's
-millimetre units to metres (λ: 30 mm → 0.03 m; η: 1.5e8 mm³ → 0.15 m³).
+Read from the public code, Zero8319/DACOOP-A, `Codes/APF_function_for_DQN.py` (forces in
+millimetres) and `Codes/environment.py` (`from_action_to_APF`, the action → (λ, η) grid):
+
+- attraction: the unit vector to the target (`attract`);
+- obstacle repulsion, within the influence range 800 mm of the nearest obstacle point
+  (`APF_decision`): η·(1/(d − 100) − 1/800)/(d − 100)² along the away-vector (`repulse`);
+- inter-pursuer force: the mean over teammates within perception range of
+  (0.5 − λ/(d − 200)) along the vector to the teammate (`individual`; without DACOOP-A's
+  learned attention weights, which belong to its DQN, not to the field);
+- wall following, when (attraction + repulsion)·attraction < 0: the repulsion turned by
+  ±90°, the one nearer the own heading while the inter-pursuer force is below 1, else the
+  one along it; plus the repulsion itself within 150 mm of the obstacle (`wall_follow`);
+- the resultant force's direction is the heading the pursuer turns to.
+
+Units: with d in metres, d_mm = 1000·d, so η·(1/(d_mm − 100) − 1/800)/(d_mm − 100)² =
+η·10⁻⁹·(1/(d − 0.1) − 1/0.8)/(d − 0.1)² and λ/(d_mm − 200) = (λ/1000)/(d − 0.2): η in mm³
+becomes η·10⁻⁹ m³ and λ in mm becomes λ/1000 m. The grid (`from_action_to_APF`): action
+index a → η = (1e6, 1e7, 1e8)[a // 8] mm³ and λ = (a mod 8)·4000/7 mm, so here
+η ∈ {0.001, 0.01, 0.1} m³ and λ = k·4/7 m, k = 0…7. The arena's own turn limit applies.
 """
 
 from __future__ import annotations
@@ -24,16 +39,18 @@ from hola_ray.policies.base import Policy
 class APFConfig:
     """The APF-A force field and its (λ, η) grid."""
 
-    lambdas: tuple[float, ...] = (0.03, 0.1, 0.25, 0.5, 0.75, 1.0, 2.0, 3.0)
-    """inter-pursuer balance λ candidates, metres"""
-    etas: tuple[float, ...] = (0.0, 0.15, 0.3)
-    """obstacle repulsion scale η candidates"""
+    lambdas: tuple[float, ...] = tuple(k * 4.0 / 7.0 for k in range(8))
+    """inter-pursuer balance λ candidates, metres (DACOOP-A: k·4000/7 mm)"""
+    etas: tuple[float, ...] = (1e-3, 1e-2, 1e-1)
+    """obstacle repulsion scale η candidates, m³ (DACOOP-A: 1e6, 1e7, 1e8 mm³)"""
     influence_range: float = 0.8
     """obstacles farther than this do not repel"""
     repulsion_offset: float = 0.1
     """subtracted from the obstacle distance (the drone safe radius)"""
     pair_offset: float = 0.2
     """subtracted from teammate distances in the inter-pursuer force (κ)"""
+    wall_follow_push: float = 0.15
+    """while wall following this close to the obstacle, the repulsion is added too"""
 
     @property
     def pairs(self) -> list[tuple[float, float]]:
@@ -94,6 +111,7 @@ def apf_actions(
         params.influence_range,
         params.repulsion_offset,
         params.pair_offset,
+        params.wall_follow_push,
     )
 
 
@@ -113,6 +131,7 @@ def _apf(
     reach,
     offset,
     pair_offset,
+    push,
 ):
     out = np.empty(obs.shape[0])
     for n in range(obs.shape[0]):
@@ -159,5 +178,8 @@ def _apf(
                 fx, fy = (t1x, t1y) if t1x >= 0.0 else (-t1x, -t1y)
             else:
                 fx, fy = (t1x, t1y) if t1x * ix + t1y * iy > 0.0 else (-t1x, -t1y)
+            if d < push:
+                fx += rx
+                fy += ry
         out[n] = _ego.to_action(fx, fy, max_turn)
     return out

@@ -59,7 +59,11 @@ def test_apf_grid_is_8_lambdas_by_3_etas(config):
     pairs = APFConfig().pairs
     assert len(pairs) == 24 and len({lam for lam, _ in pairs}) == 8
     assert len({eta for _, eta in pairs}) == 3
-    assert APFA(config, 9).lam == 0.1 and APFA(config, 9).eta == 0.15  # DACOOP action 9
+    # DACOOP-A's action a: η = (1e6, 1e7, 1e8)[a // 8] mm³, λ = (a mod 8)·4000/7 mm, in metres
+    for a in range(24):
+        lam, eta = APFA(config, a).lam, APFA(config, a).eta
+        assert lam == pytest.approx((a % 8) * 4000 / 7 / 1000)
+        assert eta == pytest.approx((1e6, 1e7, 1e8)[a // 8] * 1e-9)
     with pytest.raises(ValueError, match="pair must be in"):
         APFA(config, 24)
 
@@ -68,10 +72,9 @@ def test_apf_obstacle_repulsion_turns_away(config):
     obs = blank_obs(config)
     obs[0, 0:3] = (0.4, 0.0, 0.0)  # evader dead ahead
     obs[0, 6:8] = (0.3 / 5, 0.1)  # obstacle 0.3 m ahead-left
-    no_repulsion = APFA(config, 0).act(obs)[0]  # η = 0
-    with_repulsion = APFA(config, 16).act(obs)[0]  # η = 0.3
-    assert no_repulsion == pytest.approx(0.5)
-    assert with_repulsion < 0.5  # turns right, away from it
+    weak = APFA(config, 0).act(obs)[0]  # η = 0.001 m³
+    strong = APFA(config, 16).act(obs)[0]  # η = 0.1 m³: wall following
+    assert strong < weak < 0.5  # turns right, away from it, the more the stronger η
 
 
 def test_vicsek_leads_a_crossing_evader(config):

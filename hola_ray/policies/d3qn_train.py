@@ -1,0 +1,272 @@
+"""Training D3QN-G with RLlib's DQN (new API stack): see `hola_ray.policies.d3qn`.
+
+    python -m hola_ray.policies.d3qn_train configs/pools/d3qn-g-1.yaml runs/pools/d3qn-g-1
+
+`python -m hola_ray.pools build --pool het` calls `train_d3qn` for each D3QN-G member; a
+finished run directory (its `export.pt`) is reused, never retrained.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import time
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+import yaml
+from ray.rllib.env.multi_agent_env import MultiAgentEnv
+from ray.tune.registry import register_env
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.env.layout import ObsLayout
+from hola_ray.env.pettingzoo_env import PursuitEnv
+from hola_ray.policies.d3qn import FORMAT, PairActor, dacoop_state, state_dim
+
+ENV_NAME = "hola_ray_d3qn"
+MODULE = "d3qn"
+
+
+@dataclass(frozen=True)
+class D3QNSettings:
+    """The DQN's settings (DACOOP-A's values where two CPUs allow; see the config files)."""
+
+    env_steps: int = 60_000
+    hidden: tuple[int, ...] = (128, 64)
+    head_hidden: tuple[int, ...] = (64,)
+    lr: float = 3e-4
+    gamma: float = 0.99
+    batch: int = 128
+    buffer: int = 100_000
+    alpha: float = 0.6
+    beta: float = 0.4
+    epsilon_start: float = 1.0
+    epsilon_end: float = 0.02
+    epsilon_steps: int = 30_000
+    target_update: int = 2_000
+    learning_starts: int = 2_000
+    training_intensity: float = 8.0
+    envs: int = 8
+    fragment: int = 8
+
+
+@dataclass(frozen=True)
+class D3QNRun:
+    """A D3QN-G config file: the scenario, the seed and the DQN's settings."""
+
+    seed: int
+    env: PursuitConfig
+    d3qn: D3QNSettings
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> D3QNRun:
+        raw = yaml.safe_load(Path(path).read_text()) or {}
+        unknown = set(raw) - {"kind", "seed", "env", "d3qn"}
+        if unknown or raw.get("kind") != "d3qn":
+            raise ValueError(f"{path}: a D3QN-G config has kind: d3qn, seed, env, d3qn only")
+        allowed = {f.name for f in fields(D3QNSettings)}
+        settings = raw.get("d3qn") or {}
+        if set(settings) - allowed:
+            raise ValueError(f"{path}: unknown d3qn fields {sorted(set(settings) - allowed)}")
+        for key in ("hidden", "head_hidden"):
+            if key in settings:
+                settings[key] = tuple(settings[key])
+        return cls(
+            seed=int(raw.get("seed", 0)),
+            env=PursuitConfig.from_dict(raw.get("env") or {}),
+            d3qn=D3QNSettings(**settings),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": "d3qn",
+            "seed": self.seed,
+            "env": self.env.to_dict(),
+            "d3qn": {
+                k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self.d3qn).items()
+            },
+        }
+
+
+class D3QNEnv(MultiAgentEnv):
+    """The arena for the DQN: each pursuer reads its DACOOP-A state and picks an APF-A pair."""
+
+    def __init__(self, env_config: dict[str, Any] | None = None) -> None:
+        super().__init__()
+        self.config = PursuitConfig.from_dict(dict(env_config or {}))
+        self.env = PursuitEnv(self.config)
+        self.layout = ObsLayout.from_config(self.config)
+        self.actor = PairActor(self.config)
+        self.agents = self.possible_agents = list(self.env.possible_agents)
+        far = self.config.unobserved_distance
+        state = gym.spaces.Box(-1.0, far, (state_dim(self.config),), np.float32)
+        pairs = gym.spaces.Discrete(len(self.actor.lam))
+        self.observation_spaces = {a: state for a in self.agents}
+        self.action_spaces = {a: pairs for a in self.agents}
+        self._obs: dict[str, np.ndarray] = {}
+
+    def _states(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        if not obs:
+            return {}
+        keys = list(obs)
+        rows = dacoop_state(
+            np.stack([obs[a] for a in keys]), self.layout, self.config.unobserved_distance
+        )
+        return {a: rows[i] for i, a in enumerate(keys)}
+
+    def reset(self, *, seed=None, options=None):
+        obs, infos = self.env.reset(seed=seed, options=options)
+        self._obs = obs
+        return self._states(obs), infos
+
+    def step(self, action_dict):
+        keys = list(action_dict)
+        full = np.stack([self._obs[a] for a in keys])
+        turn = self.actor.act(full, np.array([int(action_dict[a]) for a in keys]))
+        obs, rewards, terms, truncs, infos = self.env.step(
+            {a: np.array([turn[i]], np.float32) for i, a in enumerate(keys)}
+        )
+        self._obs = obs
+        terms["__all__"] = not self.env.agents and not any(truncs.values())
+        truncs["__all__"] = any(truncs.values())
+        return self._states(obs), rewards, terms, truncs, infos
+
+
+register_env(ENV_NAME, lambda cfg: D3QNEnv(cfg))
+
+
+def algorithm_config(run: D3QNRun):
+    from ray.rllib.algorithms.dqn import DQNConfig
+
+    s = run.d3qn
+    return (
+        DQNConfig()
+        .environment(ENV_NAME, env_config=run.env.to_dict())
+        .env_runners(
+            num_env_runners=1, num_envs_per_env_runner=s.envs, rollout_fragment_length=s.fragment
+        )
+        .multi_agent(policies={MODULE}, policy_mapping_fn=lambda aid, ep, **kw: MODULE)
+        .rl_module(
+            model_config={
+                "fcnet_hiddens": list(s.hidden),
+                "fcnet_activation": "relu",
+                "head_fcnet_hiddens": list(s.head_hidden),
+                "head_fcnet_activation": "relu",
+                "epsilon": [(0, s.epsilon_start), (s.epsilon_steps, s.epsilon_end)],
+            }
+        )
+        .training(
+            double_q=True,
+            dueling=True,
+            n_step=1,
+            lr=s.lr,
+            gamma=s.gamma,
+            train_batch_size_per_learner=s.batch,
+            target_network_update_freq=s.target_update,
+            num_steps_sampled_before_learning_starts=s.learning_starts,
+            training_intensity=s.training_intensity,
+            replay_buffer_config={
+                "type": "MultiAgentPrioritizedEpisodeReplayBuffer",
+                "capacity": s.buffer,
+                "alpha": s.alpha,
+                "beta": s.beta,
+            },
+        )
+        .debugging(seed=run.seed, log_level="ERROR")
+    )
+
+
+def export_from_rllib(state: dict[str, Any], run: D3QNRun) -> dict[str, Any]:
+    """The plain-torch export (`D3QNG`) of the DQN module's state."""
+
+    def layers(prefix: str) -> list[tuple[torch.Tensor, torch.Tensor]]:
+        idx = sorted(
+            int(k[len(prefix) :].split(".")[0])
+            for k in state
+            if k.startswith(prefix) and k.endswith(".weight")
+        )
+        return [
+            (
+                torch.as_tensor(np.asarray(state[f"{prefix}{i}.weight"], np.float32)),
+                torch.as_tensor(np.asarray(state[f"{prefix}{i}.bias"], np.float32)),
+            )
+            for i in idx
+        ]
+
+    return {
+        "format": FORMAT,
+        "state_dim": state_dim(run.env),
+        "activation": "relu",
+        "trunk": layers("encoder.net.mlp."),
+        "advantage": layers("af.net.mlp."),
+        "value": layers("vf.net.mlp."),
+    }
+
+
+def train_d3qn(
+    config_path: str | Path, out: str | Path, progress: bool = True
+) -> tuple[Path, dict[str, Any]]:
+    """Train (or reuse a finished) D3QN-G run; its export file and what the training did."""
+    import ray
+
+    out = Path(out)
+    done = out / "done.json"
+    if done.is_file() and (out / "export.pt").is_file():
+        return out / "export.pt", json.loads(done.read_text())
+    run = D3QNRun.from_yaml(config_path)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.yaml").write_text(yaml.safe_dump(run.to_dict(), sort_keys=False))
+    if not ray.is_initialized():
+        ray.init(address="local", include_dashboard=False)
+    algo = algorithm_config(run).build_algo()
+    start = time.perf_counter()
+    steps = 0
+    rows = []
+    try:
+        while steps < run.d3qn.env_steps:
+            result = algo.train()
+            runners = result.get("env_runners", {})
+            steps = int(runners.get("num_env_steps_sampled_lifetime", steps))
+            row = {
+                "env_steps": steps,
+                "episode_return": round(float(runners.get("episode_return_mean", np.nan)), 3),
+                "episode_length": round(float(runners.get("episode_len_mean", np.nan)), 1),
+                "wall_s": round(time.perf_counter() - start, 1),
+            }
+            rows.append(row)
+            if progress and len(rows) % 5 == 0:
+                print(
+                    f"d3qn {out.name}: {steps:,} / {run.d3qn.env_steps:,} env steps, "
+                    f"return {row['episode_return']}, length {row['episode_length']}, "
+                    f"{row['wall_s']:.0f} s",
+                    flush=True,
+                )
+        state = algo.learner_group.get_weights([MODULE])[MODULE]
+    finally:
+        algo.stop()
+    with open(out / "progress.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    torch.save(export_from_rllib(state, run), out / "export.pt")
+    facts = {"env_steps": steps, "wall_s": round(time.perf_counter() - start, 1)}
+    done.write_text(json.dumps(facts))
+    return out / "export.pt", facts
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m hola_ray.policies.d3qn_train")
+    parser.add_argument("config", type=Path)
+    parser.add_argument("out", type=Path)
+    args = parser.parse_args(argv)
+    path, facts = train_d3qn(args.config, args.out)
+    print(f"D3QN-G export {path}: {facts}")
+
+
+if __name__ == "__main__":
+    main()

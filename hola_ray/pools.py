@@ -1,0 +1,370 @@
+"""The unseen teammate pools (SPEC §3, paper Appendix): trained once, committed, verified.
+
+    python -m hola_ray.pools build [--pool hot|het] [--episodes 50] [--seeds 0 1 2]
+    python -m hola_ray.pools show [--pool hot|het]
+
+A pool is a folder `pools/<name>/` holding one weights file per learned member and
+`manifest.json`: per member its paper name, kind, file and the file's sha256, the config
+and seed it was trained with, the commit that trained it, the scenario it plays, and its
+paper Table II figures (three copies against one evader). Hand-written members (Greedy,
+VICSEK) are code, so they have no file. Loading a pool checks every hash and refuses a
+changed file, so an evaluation always plays the teammates the manifest describes.
+
+- `hot` (homogeneous): PPO (1) and PPO (2), self-play PPO (`method: sp`) trained on the
+  evaluation's scenario, 3 pursuers vs 2 evaders (configs/pools/ppo-*.yaml). The run
+  directories stay under runs/pools/ (a build resumes or reuses them); the member is the
+  run's best generation (`best.pt`, judged in self-play on its own scenario).
+- `het` (heterogeneous): Greedy, VICSEK, D3QN-G (1) and (2).
+
+No pool member is ever used in training: nothing under hola_ray/methods or
+hola_ray/oracle reads this module, and the pool seeds (101, 102, …) are kept apart from
+the seeds of training runs.
+
+A learned member trained with more evaders than a scenario has plays it through
+`ScenarioAdapter`: the missing evaders read as captured, (2, 0, 0), exactly what the
+member saw in training once an evader was caught. That is how Table II's one-evader
+episodes are played by members trained for two.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import json
+import subprocess
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.policies.base import Policy
+from hola_ray.policies.learned import MLPPolicy
+from hola_ray.policies.registry import make_policy
+
+ROOT = Path(__file__).resolve().parents[1]
+POOLS_DIR = ROOT / "pools"
+RUNS_DIR = ROOT / "runs" / "pools"
+MANIFEST = "manifest.json"
+FORMAT = "hola_ray.pool/1"
+
+
+@dataclass(frozen=True)
+class Member:
+    """A pool member: its paper name, how it is made, and (if trained) its config."""
+
+    id: str
+    name: str
+    kind: str  # "handwritten" | "ppo" | "d3qn"
+    config: str | None = None  # repository-relative path of the training config
+
+    @property
+    def file(self) -> str | None:
+        return None if self.kind == "handwritten" else f"{self.id}.pt"
+
+
+MEMBERS = {
+    m.id: m
+    for m in (
+        Member("ppo-1", "PPO (1)", "ppo", "configs/pools/ppo-1.yaml"),
+        Member("ppo-2", "PPO (2)", "ppo", "configs/pools/ppo-2.yaml"),
+        Member("greedy", "Greedy", "handwritten"),
+        Member("vicsek", "VICSEK", "handwritten"),
+        Member("d3qn-g-1", "D3QN-G (1)", "d3qn", "configs/pools/d3qn-g-1.yaml"),
+        Member("d3qn-g-2", "D3QN-G (2)", "d3qn", "configs/pools/d3qn-g-2.yaml"),
+    )
+}
+"""Every pool member by id."""
+
+POOLS = {
+    "hot": ("ppo-1", "ppo-2"),
+    "het": ("greedy", "vicsek", "d3qn-g-1", "d3qn-g-2"),
+}
+"""Pool name → member ids (paper: homogeneous = PPO; heterogeneous = the rest)."""
+
+
+class PoolError(RuntimeError):
+    """A pool that cannot be used as it is: unknown, unbuilt, or changed since its build."""
+
+
+# ---- playing a member in another scenario --------------------------------------------------
+class ScenarioAdapter(Policy):
+    """A policy trained with `trained_evaders` evaders, playing a scenario with fewer: the
+    observation gets the missing evaders' triples as captured, (2, 0, 0)."""
+
+    def __init__(self, config: PursuitConfig, policy: Policy, trained_evaders: int) -> None:
+        super().__init__(config)
+        if trained_evaders < config.n_evaders:
+            raise PoolError(
+                f"{policy.name} was trained with {trained_evaders} evader(s); it cannot play "
+                f"{config.n_evaders}"
+            )
+        if policy.config.n_pursuers != config.n_pursuers:
+            raise PoolError(
+                f"{policy.name} was trained with {policy.config.n_pursuers} pursuers, "
+                f"this scenario has {config.n_pursuers}"
+            )
+        self.policy = policy
+        self.name = policy.name
+        self.missing = trained_evaders - config.n_evaders
+        captured = np.array([config.unobserved_distance, 0.0, 0.0], np.float32)
+        self._pad = np.tile(captured, self.missing)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        obs = self._check(obs)
+        if not self.missing:
+            return self.policy.act(obs)
+        k = 3 * self.config.n_evaders
+        pad = np.broadcast_to(self._pad, (obs.shape[0], self._pad.size))
+        return self.policy.act(np.concatenate([obs[:, :k], pad, obs[:, k:]], axis=1))
+
+    def reset(self, mask: np.ndarray | None = None) -> None:
+        self.policy.reset(mask)
+
+
+# ---- manifests and hashes -------------------------------------------------------------------
+def sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def pool_dir(pool: str | Path) -> Path:
+    """`hot`, `het` or a folder holding a manifest → the pool's folder."""
+    if isinstance(pool, str) and pool in POOLS:
+        return POOLS_DIR / pool
+    path = Path(pool)
+    if (path / MANIFEST).is_file():
+        return path
+    raise PoolError(
+        f"unknown pool {str(pool)!r}: give one of {', '.join(POOLS)} or a folder with a {MANIFEST}"
+    )
+
+
+def read_manifest(folder: Path) -> dict[str, Any]:
+    path = folder / MANIFEST
+    if not path.is_file():
+        raise PoolError(
+            f"{folder} holds no {MANIFEST}: build it with python -m hola_ray.pools build "
+            f"--pool {folder.name}"
+        )
+    manifest = json.loads(path.read_text())
+    if manifest.get("format") != FORMAT:
+        raise PoolError(f"{path}: not a {FORMAT} manifest (format {manifest.get('format')!r})")
+    return manifest
+
+
+def verify(folder: Path, manifest: dict[str, Any]) -> None:
+    """Every member file is there and has the manifest's sha256, or one clear error."""
+    for mid, entry in manifest["members"].items():
+        if entry.get("file") is None:
+            continue
+        path = folder / entry["file"]
+        if not path.is_file():
+            raise PoolError(f"pool {folder.name}: member {mid}'s file {path} is missing")
+        got = sha256(path)
+        if got != entry["sha256"]:
+            raise PoolError(
+                f"pool {folder.name}: {path} has sha256 {got[:12]}…, the manifest says "
+                f"{entry['sha256'][:12]}…: the file changed after the build; restore it "
+                f"(git checkout {path}) or rebuild the pool"
+            )
+
+
+def load_member(folder: Path, mid: str, entry: dict[str, Any], config: PursuitConfig) -> Policy:
+    """One verified member as a policy for the scenario `config`."""
+    kind = entry["kind"]
+    if kind == "handwritten":
+        return make_policy(mid, config)
+    scenario = entry["scenario"]
+    trained = dataclasses.replace(
+        config, n_pursuers=scenario["n_pursuers"], n_evaders=scenario["n_evaders"]
+    )
+    export = torch.load(folder / entry["file"], map_location="cpu", weights_only=True)
+    if kind == "ppo":
+        policy: Policy = MLPPolicy(trained, export, name=entry["name"])
+    elif kind == "d3qn":
+        from hola_ray.policies.d3qn import D3QNG
+
+        policy = D3QNG(trained, export, name=entry["name"])
+    else:
+        raise PoolError(f"pool {folder.name}: member {mid} has an unknown kind {kind!r}")
+    if trained.n_evaders == config.n_evaders:
+        return policy
+    return ScenarioAdapter(config, policy, trained.n_evaders)
+
+
+def load_pool(pool: str | Path, config: PursuitConfig) -> dict[str, Policy]:
+    """A pool's members (id → policy for the scenario `config`), every file verified."""
+    folder = pool_dir(pool)
+    manifest = read_manifest(folder)
+    verify(folder, manifest)
+    return {
+        mid: load_member(folder, mid, entry, config) for mid, entry in manifest["members"].items()
+    }
+
+
+# ---- building -------------------------------------------------------------------------------
+def commit_id() -> str:
+    """The repository's HEAD, with "-dirty" when tracked files differ from it."""
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head + ("-dirty" if dirty else "")
+
+
+def train_member(member: Member, progress: bool = True) -> tuple[Path, dict[str, Any]]:
+    """Train (or resume, or reuse) a learned member; its export file and build facts."""
+    config_path = ROOT / member.config
+    out = RUNS_DIR / member.id
+    if member.kind == "ppo":
+        from hola_ray.methods.config import RunConfig
+
+        config = RunConfig.from_yaml(config_path)
+        import ray
+
+        from hola_ray.methods.hola import Trainer
+        from hola_ray.population.coordinator import NAMESPACE
+
+        if not ray.is_initialized():
+            ray.init(address="local", namespace=NAMESPACE, include_dashboard=False)
+        Trainer(config, out, progress=progress).fit()
+        best = json.loads((out / "best.json").read_text())
+        facts = {"generation": best["generation"], "env_steps": best["env_steps"]}
+        return out / "best.pt", facts
+    if member.kind == "d3qn":
+        from hola_ray.policies.d3qn_train import train_d3qn
+
+        return train_d3qn(config_path, out, progress=progress)
+    raise PoolError(f"{member.id} is not trained")
+
+
+def member_config(member: Member):
+    """A learned member's training config (`RunConfig` or `D3QNRun`): seed, env, values."""
+    if member.kind == "d3qn":
+        from hola_ray.policies.d3qn_train import D3QNRun
+
+        return D3QNRun.from_yaml(ROOT / member.config)
+    from hola_ray.methods.config import RunConfig
+
+    return RunConfig.from_yaml(ROOT / member.config)
+
+
+def build(pool: str, episodes: int, seeds: Sequence[int], progress: bool = True) -> Path:
+    """Train what the pool lacks, copy the members in, measure Table II, write the manifest."""
+    from hola_ray.evaluation.table import measure
+
+    folder = POOLS_DIR / pool
+    folder.mkdir(parents=True, exist_ok=True)
+    members: dict[str, Any] = {}
+    for mid in POOLS[pool]:
+        member = MEMBERS[mid]
+        entry: dict[str, Any] = {"name": member.name, "kind": member.kind, "file": member.file}
+        if member.kind != "handwritten":
+            print(f"[{pool}] {member.name}: training or reusing {RUNS_DIR / mid}", flush=True)
+            source, facts = train_member(member, progress)
+            target = folder / member.file
+            target.write_bytes(source.read_bytes())
+            config = member_config(member)
+            entry |= {
+                "sha256": sha256(target),
+                "config": member.config,
+                "config_values": config.to_dict(),
+                "seed": config.seed,
+                "scenario": {
+                    "n_pursuers": config.env.n_pursuers,
+                    "n_evaders": config.env.n_evaders,
+                },
+                "trained": facts,
+            }
+        members[mid] = entry
+    manifest = {"format": FORMAT, "pool": pool, "commit": commit_id(), "members": members}
+    (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
+    # Table II: three copies against one evader, through the verified load path
+    scenario = dataclasses.replace(PursuitConfig(), n_evaders=1)
+    policies = load_pool(folder, scenario)
+    for mid, policy in policies.items():
+        row = measure(policy, scenario, episodes, seeds)
+        members[mid]["table_ii"] = {
+            k: round(v, 4) for k, v in row.items() if k in TABLE_II_KEYS
+        } | {"episodes": len(seeds) * episodes, "seeds": list(seeds)}
+        print(
+            f"[{pool}] {members[mid]['name']}: Table II success {row['success']:.1%}, "
+            f"length {row['length']:.1f}, collision {row['collision']:.1%}",
+            flush=True,
+        )
+    (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
+    return folder
+
+
+TABLE_II_KEYS = ("success", "success_se", "length", "length_se", "collision", "collision_se")
+
+
+def show(pool: str | Path) -> str:
+    folder = pool_dir(pool)
+    manifest = read_manifest(folder)
+    verify(folder, manifest)
+    lines = [f"pool {manifest['pool']} ({folder}), built at commit {manifest['commit'][:12]}"]
+    for _mid, e in manifest["members"].items():
+        t = e.get("table_ii", {})
+        figures = (
+            f"Table II success {t['success']:.1%}, length {t['length']:.1f}, "
+            f"collision {t['collision']:.1%}"
+            if t
+            else "no Table II figures"
+        )
+        origin = (
+            "hand-written"
+            if e["kind"] == "handwritten"
+            else f"{e['file']} sha256 {e['sha256'][:12]}…, seed {e['seed']}"
+        )
+        lines.append(f"  {e['name']:<11} {origin}; {figures}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m hola_ray.pools", description=__doc__.split("\n\n")[0]
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("build", help="train what is missing and write pools/<name>/")
+    b.add_argument("--pool", choices=sorted(POOLS), action="append", help="default: both")
+    b.add_argument("--episodes", type=int, default=50, help="Table II episodes per seed")
+    b.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    b.add_argument("--quiet", action="store_true")
+    s = sub.add_parser("show", help="a pool's members, hashes and Table II figures")
+    s.add_argument("--pool", default=None, help="hot, het or a folder (default: both)")
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "build":
+            for pool in args.pool or sorted(POOLS):
+                folder = build(pool, args.episodes, args.seeds, not args.quiet)
+                print(f"pool {pool} written to {folder}")
+        else:
+            for pool in [args.pool] if args.pool else sorted(POOLS):
+                print(show(pool))
+    except PoolError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

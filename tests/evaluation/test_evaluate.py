@@ -1,0 +1,147 @@
+"""The zero-shot evaluation: who sits where, the BR-Prox score's reference, teammates
+from a researcher's own module, and one clear error for a bad command line."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.evaluate import br_prox, cell_returns, draw_teams, iqm, main, seed_means
+from hola_ray.policies.learned import FORMAT
+from hola_ray.policies.registry import make_policy
+
+CONFIG = dataclasses.replace(PursuitConfig(), horizon=150)
+
+
+class Recorder:
+    """A teammate that counts the rows it is asked to act on."""
+
+    def __init__(self, policy):
+        self.policy, self.rows, self.name = policy, 0, policy.name
+
+    def act(self, obs):
+        self.rows += len(obs)
+        return self.policy.act(obs)
+
+    def reset(self, mask=None):
+        self.policy.reset(mask)
+
+
+def test_draws_seat_the_learner_in_every_seat_and_only_pool_members_beside_it():
+    rng = np.random.default_rng(0)
+    teams = draw_teams(rng, 6000, n_p=3, members=4)
+    assert ((teams == 0).sum(axis=1) == 1).all()  # the learner exactly once per episode
+    assert teams.min() == 0 and teams.max() == 4  # nothing outside [learner, members 1…4]
+    seat_share = (teams == 0).mean(axis=0)
+    np.testing.assert_allclose(seat_share, 1 / 3, atol=0.03)  # every seat, uniformly
+    member_share = np.bincount(teams[teams > 0], minlength=5)[1:] / (teams > 0).sum()
+    np.testing.assert_allclose(member_share, 0.25, atol=0.02)
+    # in episodes: every member and the learner act, and only they do
+    learner = Recorder(make_policy("greedy", CONFIG))
+    pool = [Recorder(make_policy(n, CONFIG)) for n in ("vicsek", "apf-a-10")]
+    outsider = Recorder(make_policy("apf-a-3", CONFIG))
+    seed_means(learner, pool, CONFIG, episodes=12, seeds=[0])
+    assert learner.rows > 0 and all(p.rows > 0 for p in pool) and outsider.rows == 0
+
+
+def test_a_pool_member_scores_at_most_one_and_exactly_one_where_it_is_the_reference():
+    members = [make_policy(n, CONFIG) for n in ("greedy", "vicsek", "apf-a-10")]
+    reference = cell_returns(members, members, CONFIG, episodes=4, seeds=[0, 1])
+    assert reference.shape == (9, 3, 2, 3)  # 3² combinations × 3 seats × 2 seeds × 3 members
+    for k, member in enumerate(members):
+        mine = cell_returns([member], members, CONFIG, episodes=4, seeds=[0, 1])[..., 0]
+        np.testing.assert_array_equal(mine, reference[..., k])  # the same episodes
+        scores, dropped = br_prox(reference, mine)
+        assert scores.size + dropped == mine.size and (scores <= 1).all()
+        best = reference.max(axis=-1)
+        is_ref = (reference[..., k] == best) & (best > 0)
+        assert is_ref.any()
+        np.testing.assert_array_equal(br_prox(reference[is_ref], mine[is_ref])[0], 1.0)
+    # sorted: −50, 0 | 1, 2, 2, 2 | 3, 100: the middle half
+    assert iqm(np.array([0, 1, 2, 3, 100, -50, 2, 2])) == pytest.approx(1.75)
+
+
+@pytest.fixture()
+def learner_file(tmp_path):
+    gen = torch.Generator().manual_seed(0)
+    shapes = [(8, PursuitConfig().obs_dim), (2, 8)]
+    export = {
+        "format": FORMAT,
+        "dist": "beta",
+        "weights": [torch.randn(s, generator=gen) for s in shapes],
+        "biases": [torch.randn(s[0], generator=gen) for s in shapes],
+        "activation": "tanh",
+        "low": 0.0,
+        "high": 1.0,
+    }
+    path = tmp_path / "mine.pt"
+    torch.save(export, path)
+    return path
+
+
+PARTNER = """
+from hola_ray.policies.greedy import Greedy
+
+
+class Cautious:
+    name = "cautious"
+
+    def __init__(self, config):
+        self.inner = Greedy(config)
+
+    def act(self, obs):
+        return self.inner.act(obs)
+
+    def reset(self, mask=None):
+        pass
+
+
+def make(config):
+    return Cautious(config)
+"""
+
+
+def test_partner_from_a_module_in_a_temporary_directory(
+    tmp_path, learner_file, capsys, monkeypatch
+):
+    (tmp_path / "my_partners.py").write_text(PARTNER)
+    small = ["--episodes", "3", "--seeds", "0", "--cell-episodes", "1", "--json"]
+    assert (
+        main([str(learner_file), "--partner", f"{tmp_path / 'my_partners.py'}:make", *small]) == 0
+    )
+    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    row = last["runs"]["mine"]["partners"]
+    assert 0 <= row["success"] <= 1 and row["length"] > 0 and "score_iqm" in row
+    monkeypatch.syspath_prepend(str(tmp_path))  # the module-name form
+    assert main([str(learner_file), "--partner", "my_partners:make", *small]) == 0
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--pool", "nope"], "error: unknown pool 'nope': give one of hot, het"),
+        (["--partner", "no_colon"], "error: --partner expects MODULE:CALLABLE, got 'no_colon'"),
+        (["--partner", "json:not_there"], "error: --partner json:not_there: json has no callable"),
+        (["--partner", "no_such_module_x:make"], "error: --partner no_such_module_x:make: cannot"),
+    ],
+)
+def test_a_bad_pool_or_partner_is_one_clear_error(learner_file, capsys, args, message):
+    assert main([str(learner_file), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(message) and len(err.splitlines()) == 1
+
+
+def test_replay_mixes_learned_and_hand_written_policies_with_a_legend(learner_file, tmp_path):
+    from hola_ray.replay import main as replay
+    from hola_ray.replay import resolve
+
+    assert resolve(str(learner_file), PursuitConfig()).name == "mine"
+    with pytest.raises(ValueError, match="unknown policy 'nobody'"):
+        resolve("nobody", PursuitConfig())
+    replay(["--team", str(learner_file), "greedy", "apf-a-10", "--out", str(tmp_path / "r")])
+    assert sorted(p.suffix for p in (tmp_path / "r").iterdir()) == [".gif", ".png"]

@@ -1,0 +1,99 @@
+"""Pools: a member file that changed since the build is refused, an unknown pool is one
+clear error, and a member trained for two evaders plays one as if the other were caught."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.policies.learned import FORMAT, MLPPolicy
+from hola_ray.pools import (
+    FORMAT as POOL_FORMAT,
+)
+from hola_ray.pools import (
+    MANIFEST,
+    PoolError,
+    ScenarioAdapter,
+    load_pool,
+    sha256,
+)
+
+TWO = PursuitConfig(n_evaders=2)
+ONE = dataclasses.replace(TWO, n_evaders=1)
+
+
+def export(config: PursuitConfig, seed: int = 0) -> dict:
+    gen = torch.Generator().manual_seed(seed)
+    shapes = [(8, config.obs_dim), (2, 8)]
+    return {
+        "format": FORMAT,
+        "dist": "beta",
+        "weights": [torch.randn(s, generator=gen) for s in shapes],
+        "biases": [torch.randn(s[0], generator=gen) for s in shapes],
+        "activation": "tanh",
+        "low": 0.0,
+        "high": 1.0,
+    }
+
+
+@pytest.fixture()
+def pool(tmp_path):
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    torch.save(export(TWO), folder / "ppo-x.pt")
+    manifest = {
+        "format": POOL_FORMAT,
+        "pool": "mine",
+        "commit": "test",
+        "members": {
+            "ppo-x": {
+                "name": "PPO (x)",
+                "kind": "ppo",
+                "file": "ppo-x.pt",
+                "sha256": sha256(folder / "ppo-x.pt"),
+                "scenario": {"n_pursuers": 3, "n_evaders": 2},
+            },
+            "greedy": {"name": "Greedy", "kind": "handwritten", "file": None},
+        },
+    }
+    (folder / MANIFEST).write_text(json.dumps(manifest))
+    return folder
+
+
+def test_a_verified_pool_loads_and_a_tampered_file_is_refused(pool):
+    members = load_pool(pool, TWO)
+    assert sorted(members) == ["greedy", "ppo-x"]
+    assert isinstance(members["ppo-x"], MLPPolicy)
+    data = bytearray((pool / "ppo-x.pt").read_bytes())
+    data[-20] ^= 0xFF  # one flipped byte
+    (pool / "ppo-x.pt").write_bytes(bytes(data))
+    with pytest.raises(PoolError, match="sha256 .* the file changed after the build"):
+        load_pool(pool, TWO)
+    (pool / "ppo-x.pt").unlink()
+    with pytest.raises(PoolError, match="is missing"):
+        load_pool(pool, TWO)
+
+
+def test_an_unknown_pool_is_one_clear_error(tmp_path):
+    with pytest.raises(PoolError, match="unknown pool 'nope': give one of hot, het"):
+        load_pool("nope", TWO)
+    with pytest.raises(PoolError, match="unknown pool"):
+        load_pool(tmp_path, TWO)  # a folder without a manifest
+
+
+def test_a_two_evader_member_plays_one_evader_as_if_the_other_were_caught(pool):
+    member = load_pool(pool, ONE)["ppo-x"]
+    assert isinstance(member, ScenarioAdapter)
+    reference = MLPPolicy(TWO, export(TWO))
+    rng = np.random.default_rng(0)
+    obs1 = rng.uniform(-1, 1, (32, ONE.obs_dim)).astype(np.float32)
+    # the same observation in the two-evader layout with evader 2 reading (2, 0, 0)
+    obs2 = np.concatenate([obs1[:, :3], np.tile([2.0, 0.0, 0.0], (32, 1)), obs1[:, 3:]], axis=1)
+    np.testing.assert_array_equal(member.act(obs1), reference.act(obs2.astype(np.float32)))
+    with pytest.raises(PoolError, match="cannot play 3"):
+        ScenarioAdapter(dataclasses.replace(TWO, n_evaders=3), reference, trained_evaders=2)
