@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from hola_ray.env.config import PursuitConfig
-from hola_ray.policies.learned import FORMAT, MLPPolicy
+from hola_ray.policies.learned import MLPPolicy, random_export
 from hola_ray.pools import (
     FORMAT as POOL_FORMAT,
 )
@@ -27,18 +27,8 @@ TWO = PursuitConfig(n_evaders=2)
 ONE = dataclasses.replace(TWO, n_evaders=1)
 
 
-def export(config: PursuitConfig, seed: int = 0) -> dict:
-    gen = torch.Generator().manual_seed(seed)
-    shapes = [(8, config.obs_dim), (2, 8)]
-    return {
-        "format": FORMAT,
-        "dist": "beta",
-        "weights": [torch.randn(s, generator=gen) for s in shapes],
-        "biases": [torch.randn(s[0], generator=gen) for s in shapes],
-        "activation": "tanh",
-        "low": 0.0,
-        "high": 1.0,
-    }
+def export(config: PursuitConfig) -> dict:
+    return random_export(config.obs_dim, hidden=(8,))
 
 
 @pytest.fixture()

@@ -111,6 +111,25 @@ def export_from_rllib(
     }
 
 
+def random_export(
+    obs_dim: int, hidden: Sequence[int] = (16,), seed: int = 0, bias_scale: float = 1.0
+) -> dict[str, Any]:
+    """A random tanh actor (obs → hidden … → the Beta's two inputs) in the export format:
+    a stand-in learner for tests and examples."""
+    gen = torch.Generator().manual_seed(seed)
+    sizes = [obs_dim, *hidden, 2]
+    shapes = [(o, i) for i, o in zip(sizes[:-1], sizes[1:], strict=True)]
+    return {
+        "format": FORMAT,
+        "dist": "beta",
+        "weights": [torch.randn(s, generator=gen) for s in shapes],
+        "biases": [torch.randn(s[0], generator=gen) * bias_scale for s in shapes],
+        "activation": "tanh",
+        "low": 0.0,
+        "high": 1.0,
+    }
+
+
 def _linear_layers(state: Mapping[str, Any], prefix: str) -> list[tuple[Any, Any]]:
     indices = sorted(
         int(key[len(prefix) :].split(".")[0])

@@ -12,7 +12,7 @@ import torch
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluate import br_prox, cell_returns, draw_teams, iqm, main, seed_means
-from hola_ray.policies.learned import FORMAT
+from hola_ray.policies.learned import random_export
 from hola_ray.policies.registry import make_policy
 
 CONFIG = dataclasses.replace(PursuitConfig(), horizon=150)
@@ -68,17 +68,7 @@ def test_a_pool_member_scores_at_most_one_and_exactly_one_where_it_is_the_refere
 
 @pytest.fixture()
 def learner_file(tmp_path):
-    gen = torch.Generator().manual_seed(0)
-    shapes = [(8, PursuitConfig().obs_dim), (2, 8)]
-    export = {
-        "format": FORMAT,
-        "dist": "beta",
-        "weights": [torch.randn(s, generator=gen) for s in shapes],
-        "biases": [torch.randn(s[0], generator=gen) for s in shapes],
-        "activation": "tanh",
-        "low": 0.0,
-        "high": 1.0,
-    }
+    export = random_export(PursuitConfig().obs_dim, hidden=(8,))
     path = tmp_path / "mine.pt"
     torch.save(export, path)
     return path

@@ -7,10 +7,9 @@ import itertools
 import numpy as np
 import pytest
 import ray
-import torch
 
 from hola_ray.env.config import PursuitConfig
-from hola_ray.policies.learned import FORMAT
+from hola_ray.policies.learned import random_export
 from hola_ray.population.grapher import evaluate_edges
 from hola_ray.population.member import MemberPool
 from hola_ray.population.state import edge_seed
@@ -21,22 +20,7 @@ EDGES = list(itertools.combinations(NODES, 3))  # 10 hyperedges
 EPISODES = 6
 
 
-def random_export(seed: int) -> dict:
-    """A small random actor (obs → 16 → the Beta's two inputs) in the export format."""
-    g = torch.Generator().manual_seed(seed)
-    shapes = [(16, ENV.obs_dim), (2, 16)]
-    return {
-        "format": FORMAT,
-        "dist": "beta",
-        "weights": [torch.randn(s, generator=g) for s in shapes],
-        "biases": [torch.randn(s[0], generator=g) * 0.5 for s in shapes],
-        "activation": "tanh",
-        "low": 0.0,
-        "high": 1.0,
-    }
-
-
-EXPORTS = {node: random_export(node) for node in NODES}
+EXPORTS = {node: random_export(ENV.obs_dim, seed=node, bias_scale=0.5) for node in NODES}
 
 
 def run(pool, workers, on_result=None):
