@@ -17,8 +17,10 @@ min(1, max(R(learner), 0) / R(ref)); cells where no pool member reaches a positi
 the interquartile mean over combinations × seats × seeds. Each cell plays the same
 `--cell-episodes` episode seeds for the learner and every pool member.
 
-The scenario is the paper's evaluation, 3 pursuers vs 2 evaders, with the arena's default
-rewards (the team return that the score compares); a run's own reward shaping is not used.
+The scenario is the arena's default (Table I) with the learners' number of evaders (the
+paper's evaluation is 3 vs 2; every learner given must share it) and the arena's default
+rewards (the team return that the score compares; a run's own reward shaping is not used).
+Pool members trained for more evaders play fewer through `ScenarioAdapter`.
 
 A learner is a run directory (its final `learner.pt`) or an exported policy file.
 `--partner MODULE:CALLABLE` (repeatable; MODULE a module name or a path to a .py file)
@@ -56,6 +58,28 @@ class EvaluationError(RuntimeError):
 
 
 # ---- who plays ------------------------------------------------------------------------------
+def learner_evaders(path: Path, config: PursuitConfig) -> int:
+    """How many evaders a learner was trained against (its run's config, or the export's
+    input size): the evaluation plays that scenario."""
+    path = Path(path)
+    if path.is_dir() and (path / "config.yaml").is_file():
+        import yaml
+
+        env = (yaml.safe_load((path / "config.yaml").read_text()) or {}).get("env") or {}
+        return int(env.get("n_evaders", config.n_evaders))
+    file = path / "learner.pt" if path.is_dir() else path
+    if not file.is_file():
+        raise EvaluationError(f"{path}: neither a run directory with learner.pt nor a policy file")
+    import torch
+
+    export = torch.load(file, map_location="cpu", weights_only=True)
+    inputs = export["weights"][0].shape[1] - len((export.get("features") or {}).get("indices", ()))
+    rest = 2 + 2 * (config.n_pursuers - 1) + 4  # obstacle, teammates, own
+    if (inputs - rest) % 3 or inputs <= rest:
+        raise EvaluationError(f"{file}: an input of {inputs} fits no number of evaders")
+    return (inputs - rest) // 3
+
+
 def load_learner(path: Path, config: PursuitConfig) -> tuple[str, Any]:
     """(name, policy) of a run directory (its learner.pt) or an exported policy file."""
     path = Path(path)
@@ -306,14 +330,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="where --plot writes (default runs/evaluation-…)")
     parser.add_argument("--json", action="store_true", help="last line: the figures as JSON")
     args = parser.parse_args(argv)
-    config = PursuitConfig()
     try:
+        evaders = {learner_evaders(p, PursuitConfig()) for p in args.learners}
+        if len(evaders) > 1:
+            raise EvaluationError(
+                f"the learners were trained against different numbers of evaders "
+                f"({sorted(evaders)}); evaluate them separately"
+            )
+        config = PursuitConfig(n_evaders=evaders.pop())
         names = args.pool if args.pool else ([] if args.partner else list(POOLS))
         members = pools(names, args.partner, config)
         learners = dict(load_learner(p, config) for p in args.learners)
     except EvaluationError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    print(f"scenario: {config.n_pursuers} pursuers vs {config.n_evaders} evader(s)", flush=True)
     results = evaluate(learners, members, config, args.episodes, args.seeds, args.cell_episodes)
     if args.plot:
         out = args.out or Path("runs") / time.strftime("evaluation-%Y%m%d-%H%M%S")

@@ -53,6 +53,7 @@ class D3QNSettings:
     training_intensity: float = 8.0
     envs: int = 8
     fragment: int = 8
+    n_step: int = 1
 
 
 @dataclass(frozen=True)
@@ -163,7 +164,7 @@ def algorithm_config(run: D3QNRun):
         .training(
             double_q=True,
             dueling=True,
-            n_step=1,
+            n_step=s.n_step,
             lr=s.lr,
             gamma=s.gamma,
             train_batch_size_per_learner=s.batch,

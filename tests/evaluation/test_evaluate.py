@@ -111,6 +111,16 @@ def test_partner_from_a_module_in_a_temporary_directory(
     assert main([str(learner_file), "--partner", "my_partners:make", *small]) == 0
 
 
+def test_the_evaluation_plays_the_learners_number_of_evaders(learner_file, tmp_path):
+    from hola_ray.evaluate import learner_evaders
+
+    assert learner_evaders(learner_file, PursuitConfig()) == 2
+    one = tmp_path / "one.pt"
+    torch.save(random_export(PursuitConfig(n_evaders=1).obs_dim), one)
+    assert learner_evaders(one, PursuitConfig()) == 1
+    assert main([str(learner_file), str(one), "--pool", "hot"]) == 2  # not one scenario
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
