@@ -47,7 +47,7 @@ import numpy as np
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import episode_seeds
-from hola_ray.policies.learned import MLPPolicy
+from hola_ray.policies.registry import load_policy, policy_file
 from hola_ray.pools import POOLS, PoolError, load_pool
 
 METRICS = ("success", "collision", "length")
@@ -67,7 +67,7 @@ def learner_evaders(path: Path, config: PursuitConfig) -> int:
 
         env = (yaml.safe_load((path / "config.yaml").read_text()) or {}).get("env") or {}
         return int(env.get("n_evaders", config.n_evaders))
-    file = path / "learner.pt" if path.is_dir() else path
+    file = policy_file(path)
     if not file.is_file():
         raise EvaluationError(f"{path}: neither a run directory with learner.pt nor a policy file")
     import torch
@@ -82,15 +82,11 @@ def learner_evaders(path: Path, config: PursuitConfig) -> int:
 
 def load_learner(path: Path, config: PursuitConfig) -> tuple[str, Any]:
     """(name, policy) of a run directory (its learner.pt) or an exported policy file."""
-    path = Path(path)
-    file = path / "learner.pt" if path.is_dir() else path
-    if not file.is_file():
-        raise EvaluationError(f"{path}: neither a run directory with learner.pt nor a policy file")
-    name = path.name if path.is_dir() else path.stem
     try:
-        return name, MLPPolicy.load(config, file)
+        policy = load_policy(path, config)
     except (ValueError, KeyError, RuntimeError) as err:
-        raise EvaluationError(f"{file}: cannot load it as a learner: {err}") from err
+        raise EvaluationError(f"{policy_file(path)}: cannot load it as a learner: {err}") from err
+    return policy.name, policy
 
 
 def load_partner(spec: str, config: PursuitConfig) -> tuple[str, Any]:

@@ -40,12 +40,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.policies.base import Policy
-from hola_ray.policies.learned import MLPPolicy
-from hola_ray.policies.registry import make_policy
+from hola_ray.policies.registry import load_policy, make_policy
 
 ROOT = Path(__file__).resolve().parents[1]
 POOLS_DIR = ROOT / "pools"
@@ -187,15 +185,9 @@ def load_member(folder: Path, mid: str, entry: dict[str, Any], config: PursuitCo
     trained = dataclasses.replace(
         config, n_pursuers=scenario["n_pursuers"], n_evaders=scenario["n_evaders"]
     )
-    export = torch.load(folder / entry["file"], map_location="cpu", weights_only=True)
-    if kind == "ppo":
-        policy: Policy = MLPPolicy(trained, export, name=entry["name"])
-    elif kind == "d3qn":
-        from hola_ray.policies.d3qn import D3QNG
-
-        policy = D3QNG(trained, export, name=entry["name"])
-    else:
+    if kind not in ("ppo", "d3qn"):
         raise PoolError(f"pool {folder.name}: member {mid} has an unknown kind {kind!r}")
+    policy = load_policy(folder / entry["file"], trained, name=entry["name"])
     if trained.n_evaders == config.n_evaders:
         return policy
     return ScenarioAdapter(config, policy, trained.n_evaders)
@@ -296,6 +288,8 @@ def build(pool: str, episodes: int, seeds: Sequence[int], progress: bool = True)
             }
         members[mid] = entry
     manifest = {"format": FORMAT, "pool": pool, "commit": commit_id(), "members": members}
+    # written now so that Table II plays the members through the verified load path, and
+    # again below with their Table II figures
     (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
     # Table II: three copies against one evader, through the verified load path
     scenario = dataclasses.replace(PursuitConfig(), n_evaders=1)

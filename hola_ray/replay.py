@@ -20,12 +20,11 @@ from hola_ray.env.config import PursuitConfig
 from hola_ray.env.render import animate_trajectory, plot_trajectory
 from hola_ray.evaluation.trajectory import record
 from hola_ray.policies.base import Policy
-from hola_ray.policies.registry import make_policy, policy_names
+from hola_ray.policies.registry import load_policy, make_policy, policy_names
 
 
 def resolve(name: str, config: PursuitConfig) -> Policy:
     """A policy by registry name, pool member id, run directory or exported file."""
-    from hola_ray.policies.learned import MLPPolicy
     from hola_ray.pools import MEMBERS, POOLS, load_pool
 
     if name.lower() in policy_names():
@@ -33,17 +32,8 @@ def resolve(name: str, config: PursuitConfig) -> Policy:
     if name in MEMBERS:
         pool = next(p for p, ids in POOLS.items() if name in ids)
         return load_pool(pool, config)[name]
-    path = Path(name)
-    file = path / "learner.pt" if path.is_dir() else path
-    if file.is_file():
-        import torch
-
-        export = torch.load(file, map_location="cpu", weights_only=True)
-        if str(export.get("format", "")).startswith("hola_ray.d3qn"):
-            from hola_ray.policies.d3qn import D3QNG
-
-            return D3QNG(config, export, name=path.stem)
-        return MLPPolicy(config, export, name=path.name if path.is_dir() else path.stem)
+    if Path(name).exists():
+        return load_policy(name, config)
     raise ValueError(
         f"unknown policy {name!r}: give a registry name ({', '.join(policy_names()[:2])}, "
         f"apf-a-0…23), a pool member ({', '.join(MEMBERS)}), a run directory or a .pt file"

@@ -53,7 +53,7 @@ from ray.rllib.utils.metrics import (
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitPPOModule
-from hola_ray.policies.learned import MLPPolicy, export_from_rllib, proximity_features
+from hola_ray.policies.learned import MLPPolicy, export_from_rllib
 
 SKIP = MultiAgentEpisode.SKIP_ENV_TS_TAG
 
@@ -389,8 +389,7 @@ class _PartnerStack:
     def __init__(self, ids: list[str], modules: list, actors: list[MLPPolicy]) -> None:
         self.ids = ids
         self.dist_cls = modules[0].get_inference_action_dist_cls()
-        self.feature_indices = actors[0].feature_indices
-        self.feature_gain = actors[0].feature_gain
+        self.with_features = actors[0].with_features  # the same features for every partner
         self.activation = actors[0].activation
         depth = len(actors[0].weights)
         self.weights = [torch.stack([a.weights[k] for a in actors]) for k in range(depth)]
@@ -425,9 +424,6 @@ class _PartnerStack:
                 np.array([slot.get(mid, -1) for mid in module_ids], np.int64),
             )
         return self._slots[1]
-
-    def with_features(self, obs: np.ndarray) -> torch.Tensor:
-        return proximity_features(torch.from_numpy(obs), self.feature_indices, self.feature_gain)
 
     def logits(self, x: torch.Tensor, slot: np.ndarray) -> torch.Tensor:
         """Distribution inputs [N, out] of rows x [N, in], row i played by partner slot[i]."""
