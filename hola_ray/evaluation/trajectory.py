@@ -44,8 +44,12 @@ def record(
         raise ValueError(f"team must hold {config.n_pursuers} policies, got {len(team)}")
     env = BatchedPursuit(config, 1)
     obs = env.reset(seeds=[seed], initial_state={0: initial_state} if initial_state else None)
-    for policy in team:
-        policy.reset(np.ones(1, dtype=bool))
+    # one call per policy over all of its seats, as in `rollout`: a policy with per-episode
+    # state (D3QN-G holds its pair) is bound to its rows
+    seats = {id(p): [i for i, q in enumerate(team) if q is p] for p in team}
+    players = {id(p): p for p in team}
+    for key, policy in players.items():
+        policy.reset(np.ones(len(seats[key]), dtype=bool))
     frames: dict[str, list[np.ndarray]] = {
         key: []
         for key in (
@@ -67,8 +71,8 @@ def record(
     snapshot()
     actions = np.empty((1, config.n_pursuers))
     while not env.done[0]:
-        for i, policy in enumerate(team):
-            actions[0, i] = policy.act(obs[:, i])[0]
+        for key, policy in players.items():
+            actions[0, seats[key]] = policy.act(obs[0, seats[key]])
         alive_before = env.evader_alive[0].copy()
         result = env.step(actions)
         obs = result.obs

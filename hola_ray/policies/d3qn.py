@@ -127,11 +127,33 @@ class D3QNG(Policy):
         self.name = name
         self.q = DuelingQ(export)
         self.actor = PairActor(config)
+        self.interval = int(export.get("decision_interval", 1))
+        self._pair = np.zeros(0, dtype=np.int64)
+        self._age = np.zeros(0, dtype=np.int64)
 
     def pairs(self, obs: np.ndarray) -> np.ndarray:
+        """The Q-network's greedy pair for each observation row."""
         state = dacoop_state(obs, self.layout, self.config.unobserved_distance)
         return self.q(torch.from_numpy(state)).argmax(dim=-1).numpy()
 
+    def reset(self, mask: np.ndarray | None = None) -> None:
+        """Rows in mask pick a fresh pair at their next step (binds len(mask) rows)."""
+        if mask is None:
+            self._age[:] = 0
+            return
+        mask = np.asarray(mask, dtype=bool)
+        if len(mask) != len(self._age):
+            self._pair = np.zeros(len(mask), dtype=np.int64)
+            self._age = np.zeros(len(mask), dtype=np.int64)
+        self._age[mask] = 0
+
     def act(self, obs: np.ndarray) -> np.ndarray:
+        """APF-A with each row's pair, re-picked every `decision_interval` steps."""
         obs = self._check(obs)
-        return self.actor.act(obs, self.pairs(obs))
+        if len(obs) != len(self._age):
+            self.reset(np.ones(len(obs), dtype=bool))
+        due = self._age % self.interval == 0
+        if due.any():
+            self._pair[due] = self.pairs(obs[due])
+        self._age += 1
+        return self.actor.act(obs, self._pair)

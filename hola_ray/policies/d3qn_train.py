@@ -54,6 +54,8 @@ class D3QNSettings:
     envs: int = 8
     fragment: int = 8
     n_step: int = 1
+    decision_interval: int = 1
+    """env steps a chosen pair is held (DQN's action repeat); DACOOP-A picks every step"""
 
 
 @dataclass(frozen=True)
@@ -99,7 +101,9 @@ class D3QNEnv(MultiAgentEnv):
 
     def __init__(self, env_config: dict[str, Any] | None = None) -> None:
         super().__init__()
-        self.config = PursuitConfig.from_dict(dict(env_config or {}))
+        env_config = dict(env_config or {})
+        self.interval = int(env_config.pop("decision_interval", 1))
+        self.config = PursuitConfig.from_dict(env_config)
         self.env = PursuitEnv(self.config)
         self.layout = ObsLayout.from_config(self.config)
         self.actor = PairActor(self.config)
@@ -126,13 +130,23 @@ class D3QNEnv(MultiAgentEnv):
         return self._states(obs), infos
 
     def step(self, action_dict):
-        keys = list(action_dict)
-        full = np.stack([self._obs[a] for a in keys])
-        turn = self.actor.act(full, np.array([int(action_dict[a]) for a in keys]))
-        obs, rewards, terms, truncs, infos = self.env.step(
-            {a: np.array([turn[i]], np.float32) for i, a in enumerate(keys)}
-        )
-        self._obs = obs
+        """Play the chosen pairs for `interval` env steps (fewer if a pursuer's episode
+        ends first); each pursuer's reward is its sum over those steps."""
+        pairs = {a: int(p) for a, p in action_dict.items()}
+        total = dict.fromkeys(pairs, 0.0)
+        for _ in range(self.interval):
+            keys = [a for a in pairs if a in self._obs]
+            full = np.stack([self._obs[a] for a in keys])
+            turn = self.actor.act(full, np.array([pairs[a] for a in keys]))
+            obs, rewards, terms, truncs, infos = self.env.step(
+                {a: np.array([turn[i]], np.float32) for i, a in enumerate(keys)}
+            )
+            for a, r in rewards.items():
+                total[a] += float(r)
+            self._obs = obs
+            if any(terms.values()) or any(truncs.values()):
+                break
+        rewards = {a: total[a] for a in rewards}
         terms["__all__"] = not self.env.agents and not any(truncs.values())
         truncs["__all__"] = any(truncs.values())
         return self._states(obs), rewards, terms, truncs, infos
@@ -147,7 +161,9 @@ def algorithm_config(run: D3QNRun):
     s = run.d3qn
     return (
         DQNConfig()
-        .environment(ENV_NAME, env_config=run.env.to_dict())
+        .environment(
+            ENV_NAME, env_config={**run.env.to_dict(), "decision_interval": s.decision_interval}
+        )
         .env_runners(
             num_env_runners=1, num_envs_per_env_runner=s.envs, rollout_fragment_length=s.fragment
         )
@@ -202,6 +218,7 @@ def export_from_rllib(state: dict[str, Any], run: D3QNRun) -> dict[str, Any]:
     return {
         "format": FORMAT,
         "state_dim": state_dim(run.env),
+        "decision_interval": run.d3qn.decision_interval,
         "activation": "relu",
         "trunk": layers("encoder.net.mlp."),
         "advantage": layers("af.net.mlp."),

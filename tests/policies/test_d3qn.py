@@ -95,3 +95,74 @@ def test_the_export_plays_the_dqn_modules_greedy_pair(dqn):
     assert actions.shape == (len(obs),) and np.all((actions >= 0) & (actions <= 1))
     with pytest.raises(ValueError, match="reads 9-dim states"):
         D3QNG(dataclasses.replace(ONE, n_pursuers=4), export_from_rllib(state, run))
+
+
+def random_export(config: PursuitConfig, interval: int, seed: int = 0) -> dict:
+    g = torch.Generator().manual_seed(seed)
+    dim = 5 + 2 * (config.n_pursuers - 1)
+
+    def layer(n_in, n_out):
+        return (torch.randn(n_out, n_in, generator=g), torch.randn(n_out, generator=g))
+
+    return {
+        "format": "hola_ray.d3qn/1",
+        "state_dim": dim,
+        "decision_interval": interval,
+        "activation": "relu",
+        "trunk": [layer(dim, 16)],
+        "advantage": [layer(16, 24)],
+        "value": [layer(16, 1)],
+    }
+
+
+def test_d3qn_g_holds_its_pair_for_the_decision_interval_and_a_reset_repicks():
+    obs = observations(ONE, steps=7)
+    rows = len(obs) // 7
+    policy = D3QNG(ONE, random_export(ONE, interval=3))
+    policy.reset(np.ones(rows, dtype=bool))
+    held = []
+    for t in range(7):
+        frame = obs[t * rows : (t + 1) * rows]
+        policy.act(frame)
+        held.append(policy._pair.copy())
+        if t % 3 == 0:  # a decision step: the network's pair for this frame
+            np.testing.assert_array_equal(held[-1], policy.pairs(frame))
+        else:  # held from the last decision
+            np.testing.assert_array_equal(held[-1], held[-2])
+    assert any((held[3] != held[0]).tolist())  # the pairs do change between decisions
+    frame = obs[rows : 2 * rows]
+    mask = np.zeros(rows, dtype=bool)
+    mask[::2] = True
+    before = policy._pair.copy()  # t = 7: not a decision step for the rows kept
+    policy.reset(mask)
+    policy.act(frame)
+    np.testing.assert_array_equal(policy._pair[mask], policy.pairs(frame)[mask])
+    np.testing.assert_array_equal(policy._pair[~mask], before[~mask])
+
+
+def test_the_training_env_plays_a_pair_for_the_interval_and_sums_its_rewards():
+    from hola_ray.env.pettingzoo_env import PursuitEnv
+    from hola_ray.policies.d3qn_train import D3QNEnv
+
+    config = dataclasses.replace(ONE, horizon=200)
+    env = D3QNEnv({**config.to_dict(), "decision_interval": 4})
+    twin, actor = PursuitEnv(config), PairActor(config)
+    env.reset(seed=5)
+    obs, _ = twin.reset(seed=5)
+    pairs = {a: k for k, a in zip((2, 10, 19), env.agents, strict=True)}
+    for _ in range(3):
+        states, rewards, terms, truncs, _ = env.step(pairs)
+        expected = dict.fromkeys(pairs, 0.0)
+        for _ in range(4):
+            keys = list(obs)
+            turn = actor.act(np.stack([obs[a] for a in keys]), np.array([pairs[a] for a in keys]))
+            obs, r, t, tr, _ = twin.step(
+                {a: np.array([turn[i]], np.float32) for i, a in enumerate(keys)}
+            )
+            for a in r:
+                expected[a] += r[a]
+        assert rewards == pytest.approx(expected)
+        np.testing.assert_array_equal(
+            np.stack([states[a] for a in keys]),
+            dacoop_state(np.stack([obs[a] for a in keys]), env.layout, config.unobserved_distance),
+        )
