@@ -26,7 +26,7 @@ from ray.tune.registry import register_env
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.layout import ObsLayout
 from hola_ray.env.pettingzoo_env import PursuitEnv
-from hola_ray.policies.d3qn import FORMAT, PairActor, dacoop_state, state_dim
+from hola_ray.policies.d3qn import D3QNG, FORMAT, PairActor, dacoop_state, state_dim
 
 ENV_NAME = "hola_ray_d3qn"
 MODULE = "d3qn"
@@ -56,6 +56,11 @@ class D3QNSettings:
     n_step: int = 1
     decision_interval: int = 1
     """env steps a chosen pair is held (DQN's action repeat); DACOOP-A picks every step"""
+    validate_every: int = 0
+    """every so many env steps (decisions) the greedy network is validated; 0: never, the
+    last network is exported"""
+    validate_episodes: int = 60
+    """episodes of a validation: three copies vs the run's evaders, the training scenario"""
 
 
 @dataclass(frozen=True)
@@ -226,6 +231,29 @@ def export_from_rllib(state: dict[str, Any], run: D3QNRun) -> dict[str, Any]:
     }
 
 
+VALIDATION_SEED = 7_919
+"""Validation episodes' seeds derive from VALIDATION_SEED + the run's seed: apart from
+Table II's (seeds 0, 1, 2), and validation plays only the member itself, never a pool."""
+
+
+def validate(export: dict[str, Any], run: D3QNRun) -> tuple[float, float]:
+    """The greedy network's success and collision rates, three copies in the training
+    scenario. DACOOP-A saves its network every 500 episodes and validates the last in
+    `validation.py`; here the greedy network of a short run swings between validations
+    (70 % and 97 % Table II success for two runs of one config), so the best validated
+    one is exported."""
+    from hola_ray.evaluation.rollout import rollout
+
+    policy = D3QNG(run.env, export)
+    result = rollout(
+        run.env,
+        [policy] * run.env.n_pursuers,
+        run.d3qn.validate_episodes,
+        seed=VALIDATION_SEED + run.seed,
+    )
+    return round(float(result.success.mean()), 4), round(float(result.collision.mean()), 4)
+
+
 def train_d3qn(
     config_path: str | Path, out: str | Path, progress: bool = True
 ) -> tuple[Path, dict[str, Any]]:
@@ -245,17 +273,33 @@ def train_d3qn(
     start = time.perf_counter()
     steps = 0
     rows = []
+    every = run.d3qn.validate_every
+    best: tuple[tuple[float, float], dict[str, Any], int] | None = None
     try:
         while steps < run.d3qn.env_steps:
             result = algo.train()
             runners = result.get("env_runners", {})
-            steps = int(runners.get("num_env_steps_sampled_lifetime", steps))
+            before, steps = steps, int(runners.get("num_env_steps_sampled_lifetime", steps))
             row = {
                 "env_steps": steps,
                 "episode_return": round(float(runners.get("episode_return_mean", np.nan)), 3),
                 "episode_length": round(float(runners.get("episode_len_mean", np.nan)), 1),
+                "validation_success": "",
+                "validation_collision": "",
                 "wall_s": round(time.perf_counter() - start, 1),
             }
+            if every and (steps // every > before // every or steps >= run.d3qn.env_steps):
+                export = export_from_rllib(algo.learner_group.get_weights([MODULE])[MODULE], run)
+                success, collision = validate(export, run)
+                row["validation_success"], row["validation_collision"] = success, collision
+                if best is None or (success, -collision) > best[0]:
+                    best = ((success, -collision), export, steps)
+                if progress:
+                    print(
+                        f"d3qn {out.name}: validation at {steps:,} env steps: success "
+                        f"{success:.1%}, collision {collision:.1%}",
+                        flush=True,
+                    )
             rows.append(row)
             if progress and len(rows) % 5 == 0:
                 print(
@@ -264,15 +308,23 @@ def train_d3qn(
                     f"{row['wall_s']:.0f} s",
                     flush=True,
                 )
-        state = algo.learner_group.get_weights([MODULE])[MODULE]
+        if best is None:
+            export = export_from_rllib(algo.learner_group.get_weights([MODULE])[MODULE], run)
+            chosen = steps
+        else:
+            _, export, chosen = best
     finally:
         algo.stop()
     with open(out / "progress.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    torch.save(export_from_rllib(state, run), out / "export.pt")
-    facts = {"env_steps": steps, "wall_s": round(time.perf_counter() - start, 1)}
+    torch.save(export, out / "export.pt")
+    facts = {
+        "env_steps": steps,
+        "exported_at_env_steps": chosen,
+        "wall_s": round(time.perf_counter() - start, 1),
+    }
     done.write_text(json.dumps(facts))
     return out / "export.pt", facts
 

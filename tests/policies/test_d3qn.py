@@ -166,3 +166,48 @@ def test_the_training_env_plays_a_pair_for_the_interval_and_sums_its_rewards():
             np.stack([states[a] for a in keys]),
             dacoop_state(np.stack([obs[a] for a in keys]), env.layout, config.unobserved_distance),
         )
+
+
+def test_training_exports_the_best_validated_network(ray_session, tmp_path):
+    import csv
+
+    import yaml
+
+    from hola_ray.policies.d3qn_train import D3QNRun, train_d3qn, validate
+
+    config = tmp_path / "tiny.yaml"
+    config.write_text(
+        yaml.safe_dump(
+            {
+                "kind": "d3qn",
+                "seed": 4,
+                "env": {"n_evaders": 1, "horizon": 80},
+                "d3qn": {
+                    "env_steps": 3000,
+                    "decision_interval": 4,
+                    "validate_every": 1000,
+                    "validate_episodes": 8,
+                    "learning_starts": 40,
+                    "hidden": [16],
+                    "head_hidden": [8],
+                    "envs": 2,
+                    "training_intensity": 2,
+                },
+            }
+        )
+    )
+    path, facts = train_d3qn(config, tmp_path / "run", progress=False)
+    with open(tmp_path / "run" / "progress.csv") as f:
+        rows = [r for r in csv.DictReader(f) if r["validation_success"]]
+    assert len(rows) >= 3
+    scores = [(float(r["validation_success"]), -float(r["validation_collision"])) for r in rows]
+    best = rows[scores.index(max(scores))]
+    assert facts["exported_at_env_steps"] == int(best["env_steps"])
+    export = torch.load(path, weights_only=False)
+    assert export["decision_interval"] == 4
+    run = D3QNRun.from_yaml(config)
+    assert validate(export, run) == (
+        float(best["validation_success"]),
+        float(best["validation_collision"]),
+    )
+    assert train_d3qn(config, tmp_path / "run")[1] == facts  # a finished run is reused
