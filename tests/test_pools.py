@@ -87,3 +87,22 @@ def test_a_two_evader_member_plays_one_evader_as_if_the_other_were_caught(pool):
     np.testing.assert_array_equal(member.act(obs1), reference.act(obs2.astype(np.float32)))
     with pytest.raises(PoolError, match="cannot play 3"):
         ScenarioAdapter(dataclasses.replace(TWO, n_evaders=3), reference, trained_evaders=2)
+
+
+@pytest.mark.parametrize("name", ["hot", "het"])
+def test_the_committed_pools_load_and_play_their_recorded_table_ii(name):
+    from hola_ray.evaluation.table import measure, table_scenario
+    from hola_ray.pools import pool_dir, read_manifest
+
+    config = table_scenario(TWO)
+    members = load_pool(name, config)  # every hash verified
+    manifest = read_manifest(pool_dir(name))
+    assert set(members) == set(manifest["members"])
+    for mid, entry in manifest["members"].items():
+        if "table_ii" not in entry or entry["file"] is None:
+            continue
+        recorded = entry["table_ii"]
+        episodes = recorded["episodes"] // len(recorded["seeds"])
+        again = measure(members[mid], config, episodes, recorded["seeds"])
+        for key in ("success", "length", "collision"):  # play is deterministic
+            assert round(again[key], 2) == round(recorded[key], 2), (mid, key)
