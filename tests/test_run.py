@@ -170,3 +170,40 @@ def test_a_fresh_run_refuses_a_used_run_directory(tmp_path, capsys):
     assert "--resume" in capsys.readouterr().err
     assert run.main(["--resume", str(tmp_path / "nothing")]) == 2
     assert not ray.is_initialized()
+
+
+@pytest.mark.parametrize("method", ["fcp", "mep"])
+def test_best_response_methods_keep_their_population_fixed(tmp_path, method):
+    """fcp: the population is two self-play agents' start, middle and end checkpoints;
+    mep: the MEP population, partners then drawn by the rank of the learner's returns.
+    Neither admits the learner; both train it as a best response, drawn as they say."""
+    import json
+
+    config = tmp_path / f"{method}.yaml"
+    smoke = yaml.safe_load(SMOKE.read_text())
+    patch = {"method": method, "generations": 2}
+    if method == "fcp":
+        patch |= {"fcp": {"agents": 2, "env_steps": 2000}, "population": {"max_size": 6}}
+    config.write_text(yaml.safe_dump(smoke | patch))
+    out = tmp_path / method
+    done = main_job("--config", str(config), "--out", str(out))
+    assert done.returncode == 0, done.stderr[-3000:]
+    r = RunDir(out)
+    assert r.completed() == [0, 1, 2]
+    rows = r.metrics_rows()
+    size = 6 if method == "fcp" else smoke["population"]["initial_size"]
+    assert [row["population_size"] for row in rows] == [size] * 3
+    assert [row["accepted"] for row in rows[1:]] == [0, 0]
+    states = [json.loads((r.generation(g) / "state.json").read_text()) for g in (0, 1, 2)]
+    assert all(sorted(s["population"]["slots"]) == [str(v) for v in range(size)] for s in states)
+    phi = json.loads((r.generation(2) / "phi.json").read_text())
+    if method == "fcp":
+        assert "trained 2 self-play agents for FCP (6 checkpoints)" in done.stdout
+        assert all(v == pytest.approx(1 / 6) for v in phi.values())
+    else:
+        from hola_ray.population.state import rank_priorities
+
+        returns = {int(k): v for k, v in states[2]["population"]["learner_returns"].items()}
+        assert set(returns) == set(range(size))  # every member met the learner
+        full = {v: returns.get(v) for v in range(size)}
+        assert {int(k): v for k, v in phi.items()} == pytest.approx(rank_priorities(full, 3.0))

@@ -25,15 +25,32 @@ SAMPLERS = ("batched", "pettingzoo")
 """oracle.sampler: how the Oracle's env runners sample (OracleConfig.sampler)."""
 
 
+POPULATIONS = ("mep", "fcp", "none")
+"""Method.population: how the partner population is built."""
+PARTNER_DRAWS = ("myerson", "mean_reward", "uniform", "rank")
+"""Method.phi_kind: how the Oracle draws partners from the population."""
+
+
 @dataclass(frozen=True)
 class Method:
     """A training method as a strategy over the one trainer (SPEC §5): how the partner
-    population is built, how the Oracle seats partners, who joins the population."""
+    population is built, how the Oracle draws partners from it, who joins it. Adding a
+    method is adding one entry to METHODS (and, for a new way to build or draw, one branch
+    where `population` or `phi_kind` is read: `Trainer._pretrain`, `Population.phi`)."""
 
     name: str
     """the value of `method` in a run config"""
+    population: str
+    """mep: pre-trained jointly with the population-entropy bonus (MEP, Zhao 2023);
+    fcp: self-play agents of `fcp.agents` seeds, each at the start, middle and end of its
+    training (FCP, Strouse 2021); none: no partners (self-play)"""
     phi_kind: str | None
-    """the node value whose shifted inverse is φ (SPEC §4); None: no partner population"""
+    """myerson / mean_reward: φ = the shifted inverse of that node value (SPEC §4);
+    uniform: every member equally; rank: p ∝ rank^β, rank 1 for the partner the learner
+    scores best with (MEP's prioritised sampling, rank(1/return)^β); None: self-play"""
+    joins: bool
+    """the learner joins the population when its η rank is within the top m; False: the
+    population stays fixed and the learner is its best response"""
     description: str
     """one line for help texts"""
 
@@ -41,15 +58,48 @@ class Method:
     def self_play(self) -> bool:
         """Every seat plays the learner: no population, no pre-training, no Grapher; the
         learner is judged by its own team's rollout."""
-        return self.phi_kind is None
+        return self.population == "none"
 
 
 METHODS = {
     m.name: m
     for m in (
-        Method("hola", "myerson", "HOLA-Drone: partners drawn by the inverse Myerson value"),
-        Method("hola_r", "mean_reward", "HOLA-Drone_R: partners by the inverse mean reward"),
-        Method("sp", None, "self-play: one trained module in every seat"),
+        Method(
+            "hola",
+            "mep",
+            "myerson",
+            True,
+            "HOLA-Drone: partners drawn by the inverse Myerson value",
+        ),
+        Method(
+            "hola_r",
+            "mep",
+            "mean_reward",
+            True,
+            "HOLA-Drone_R: partners by the inverse mean reward",
+        ),
+        Method(
+            "uniform",
+            "mep",
+            "uniform",
+            True,
+            "HOLA-Drone with uniform partners: the control for what φ adds",
+        ),
+        Method("sp", "none", None, False, "self-play: one trained module in every seat"),
+        Method(
+            "fcp",
+            "fcp",
+            "uniform",
+            False,
+            "FCP: a best response to frozen self-play checkpoints, drawn uniformly",
+        ),
+        Method(
+            "mep",
+            "mep",
+            "rank",
+            False,
+            "MEP: a best response to the MEP population, prioritised by rank(1/return)^β",
+        ),
     )
 }
 """The methods a run config may name."""
@@ -184,6 +234,8 @@ class PopulationConfig:
     """the learner joins when its η rank is within the top m (the approximate oracle)"""
     phi_shift: float = 0.1
     """φ = normalised 1/(x − x_min + shift·(x_max − x_min)), x the node values"""
+    rank_beta: float = 3.0
+    """β of MEP's prioritised partner sampling p ∝ rank^β (method mep)"""
 
     def validate(self, l: int) -> None:  # noqa: E741 - the paper's l
         s = "population"
@@ -207,6 +259,21 @@ class PopulationConfig:
             self.top_m,
         )
         _finite(s, self, "phi_shift", 1e-6, 10.0, "in [1e-6, 10]")
+        _finite(s, self, "rank_beta", 0.0, 100.0, "in [0, 100]")
+
+
+@dataclass(frozen=True)
+class FCPConfig:
+    """Fictitious Co-Play's partner population (method fcp; Strouse et al. 2021)."""
+
+    agents: int = 2
+    """self-play agents, each from its own seed; each gives 3 members (its start, middle
+    and end checkpoints), so population.max_size must hold 3 · agents"""
+    env_steps: int = 100_000
+    """environment steps of each agent's self-play training"""
+
+    def validate(self) -> None:
+        _positive_int("fcp", self, "agents", "env_steps")
 
 
 @dataclass(frozen=True)
@@ -230,8 +297,8 @@ class RunConfig:
     """One HOLA-Drone training run: method, budget and every sub-config."""
 
     method: str = "hola"
-    """hola (φ from the inverse Myerson value), hola_r (from the inverse mean reward) or sp
-    (self-play: the learner in every seat)"""
+    """hola (φ from the inverse Myerson value), hola_r (the inverse mean reward), uniform,
+    sp (self-play), fcp or mep: see METHODS"""
     generations: int = 10
     """open-ended generations after pre-training"""
     seed: int = 0
@@ -246,6 +313,8 @@ class RunConfig:
     """population and acceptance"""
     grapher: GrapherConfig = field(default_factory=GrapherConfig)
     """hyperedge evaluation"""
+    fcp: FCPConfig = field(default_factory=FCPConfig)
+    """FCP's self-play partners (method fcp only)"""
 
     def __post_init__(self) -> None:
         require(
@@ -259,6 +328,16 @@ class RunConfig:
         self.pretrain.validate()
         self.population.validate(self.l)
         self.grapher.validate()
+        self.fcp.validate()
+        if self.strategy.population == "fcp":
+            members = 3 * self.fcp.agents
+            require(
+                self.l <= members <= self.population.max_size,
+                "fcp.agents",
+                f"such that l = {self.l} <= 3 · fcp.agents <= population.max_size "
+                f"({self.population.max_size})",
+                self.fcp.agents,
+            )
 
     @property
     def l(self) -> int:  # noqa: E743 - the paper's l
@@ -288,8 +367,8 @@ class RunConfig:
 
     @property
     def phi_kind(self) -> str:
-        """The node value φ inverts (myerson or mean_reward); self-play has none."""
-        return self.strategy.phi_kind or "myerson"
+        """How the Oracle draws partners (`PARTNER_DRAWS`); self-play has none."""
+        return self.strategy.phi_kind or "uniform"
 
     # ---- YAML ---------------------------------------------------------------------------
     @classmethod
@@ -303,6 +382,7 @@ class RunConfig:
             ("pretrain", PretrainConfig),
             ("population", PopulationConfig),
             ("grapher", GrapherConfig),
+            ("fcp", FCPConfig),
         ):
             if name in kwargs:
                 kwargs[name] = sub(**_fields(sub, kwargs[name], f"{name}."))
@@ -329,7 +409,7 @@ class RunConfig:
             "seed": self.seed,
             "env": self.env.to_dict(),
         }
-        for name in ("oracle", "pretrain", "population", "grapher"):
+        for name in ("oracle", "pretrain", "population", "grapher", "fcp"):
             out[name] = dataclasses.asdict(getattr(self, name))
         out["oracle"]["hidden"] = list(self.oracle.hidden)
         return out

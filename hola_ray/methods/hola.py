@@ -1,17 +1,21 @@
 """The one trainer (SPEC §5): generations of Oracle → judge → coordinator.
 
-HOLA-Drone (`hola`, `hola_r`): MEP pre-training and G_0, then each generation the Oracle
-trains the learner with partners drawn by φ, the Grapher weighs its hyperedges and the
-coordinator accepts it into the population or not. Self-play (`sp`): no population; the
-Oracle seats the learner in every slot and the learner is judged by its own team's
-rollout. The driver only sequences the phases; the population lives in the coordinator
-actor, the hyperedge evaluations in member actors, the PPO in RLlib's env runners and
-learner. Every method leaves `learner.pt` (the latest learner) and `best.pt` with
-`best.json` (the generation whose learner scored best in its judging).
+Every method (`hola_ray.methods.config.METHODS`) runs this loop. Generation 0 builds the
+partner population (MEP pre-training, or FCP's self-play checkpoints) and G_0; then each
+generation the Oracle trains the learner with partners drawn as the method says (φ, uniform
+or MEP's rank rule; the coordinator's `phi`), the Grapher weighs the learner's hyperedges
+and the coordinator accepts it into the population or not (best-response methods: never).
+Self-play (`sp`): no population; the Oracle seats the learner in every slot and the
+learner is judged by its own team's rollout. The driver only sequences the phases; the
+population lives in the coordinator actor, the hyperedge evaluations in member actors, the
+PPO in RLlib's env runners and learner. Every method leaves `learner.pt` (the latest
+learner) and `best.pt` with `best.json` (the generation whose learner scored best in its
+judging).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -99,13 +103,19 @@ class Trainer:
         c = self.config
         self.coord.set_phase.remote("pretrain")
         start = time.perf_counter()
-        mep = Oracle(c, mep_members=c.population.initial_size)
-        try:
-            stats = mep.train(c.pretrain.env_steps, desc="pre-train (MEP)", progress=self.progress)
-            states = mep.weights(mep.members)
-        finally:
-            mep.stop()
-        states_list = [states[m] for m in mep.members]
+        if c.strategy.population == "fcp":
+            states_list, stats, built = self._fcp_population()
+        else:
+            mep = Oracle(c, mep_members=c.population.initial_size)
+            try:
+                stats = mep.train(
+                    c.pretrain.env_steps, desc="pre-train (MEP)", progress=self.progress
+                )
+                states = mep.weights(mep.members)
+            finally:
+                mep.stop()
+            states_list = [states[m] for m in mep.members]
+            built = f"pre-trained {len(states_list)} members with MEP"
         exports = [c.export(s) for s in states_list]
         pretrain_s = time.perf_counter() - start
         ray.get(self.coord.init_population.remote(exports, states_list))
@@ -127,11 +137,41 @@ class Trainer:
         }
         row = ray.get(self.coord.commit.remote(0, metrics, None, None, stats.iteration_log))
         self._say(
-            f"gen 0: pre-trained {c.population.initial_size} members with MEP in "
-            f"{pretrain_s:.0f}s; G_0 success {row['population_success']:.0%}, "
+            f"gen 0: {built} in {pretrain_s:.0f}s; G_0 success {row['population_success']:.0%}, "
             f"return {row['population_return']:.1f}"
         )
         return row
+
+    def _fcp_population(self) -> tuple[list[dict[str, Any]], Any, str]:
+        """FCP's partners: `fcp.agents` self-play agents, each from its own seed, frozen at
+        the start, the middle and the end of its training (3 members per agent)."""
+        c = self.config
+        states: list[dict[str, Any]] = []
+        parts = []
+        for i in range(c.fcp.agents):
+            sp = dataclasses.replace(c, method="sp", seed=fcp_seed(c.seed, i))
+            oracle = Oracle(sp)
+            try:
+                states.append(oracle.weights([LEARNER])[LEARNER])
+                half = c.fcp.env_steps // 2
+                for part, budget in (("middle", half), ("end", c.fcp.env_steps - half)):
+                    stats = oracle.train(
+                        budget, desc=f"pre-train (FCP agent {i}, to {part})", progress=self.progress
+                    )
+                    parts.append(stats)
+                    states.append(oracle.weights([LEARNER])[LEARNER])
+            finally:
+                oracle.stop()
+        total = dataclasses.replace(
+            parts[-1],
+            **{k: sum(getattr(p, k) for p in parts) for k in ("env_steps", "wall_s", "sample_s")},
+            learn_s=sum(p.learn_s for p in parts),
+        )
+        return (
+            states,
+            total,
+            f"trained {c.fcp.agents} self-play agents for FCP ({len(states)} checkpoints)",
+        )
 
     # ---- generations 1.. ----------------------------------------------------------------
     def _generation(self, g: int, oracle: Oracle) -> dict[str, Any]:
@@ -175,6 +215,8 @@ class Trainer:
             verdict = f"accepted as node {decision.candidate} (rank {decision.rank}" + (
                 f", replaces {decision.replaced})" if decision.replaced is not None else ")"
             )
+        elif not c.strategy.joins:
+            verdict = f"population fixed ({c.method}: a best response; η rank {decision.rank})"
         else:
             verdict = f"rejected (rank {decision.rank} > top {c.population.top_m})"
         self._say(
@@ -260,6 +302,11 @@ class Trainer:
 
     def _say(self, text: str) -> None:
         print(text, flush=True)
+
+
+def fcp_seed(run_seed: int, agent: int) -> int:
+    """The seed of FCP's self-play agent `agent`: apart from the run's own and each other's."""
+    return run_seed + 1000 * (agent + 1)
 
 
 def _edge_summary(prefix: str, results: list[EdgeResult]) -> dict[str, float]:

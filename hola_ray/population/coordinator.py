@@ -53,7 +53,13 @@ class Coordinator:
         if self.generation is None:
             p = self.config.population
             self.population = Population(
-                self.config.l, p.max_size, p.top_m, self.config.phi_kind, p.phi_shift
+                self.config.l,
+                p.max_size,
+                p.top_m,
+                self.config.phi_kind,
+                p.phi_shift,
+                joins=self.config.strategy.joins,
+                rank_beta=p.rank_beta,
             )
             self.last_metrics: dict[str, Any] = {}
         else:

@@ -4,6 +4,11 @@ Nodes get increasing integer ids: the pre-trained members 0..K−1, then one id 
 generation's learner candidate. Each member sits in a population slot (0..max_size−1),
 which is the Oracle's frozen partner module `member_<slot>`; a replaced member's slot
 goes to the newcomer. The HyFoG has room for the population plus the candidate.
+
+How the Oracle draws partners (`phi_kind`, the method's): the shifted inverse of a node
+value (myerson, mean_reward; `hola_ray.hypergraph.phi`), uniform, or MEP's rank rule over
+the learner's returns with each member (rank). A population that does not `join` stays
+fixed: every candidate is measured and then turned away (best-response methods).
 """
 
 from __future__ import annotations
@@ -53,9 +58,21 @@ class Decision:
 class Population:
     """Members, their slots, the HyFoG over them, and the φ/η views of it."""
 
-    def __init__(self, l: int, max_size: int, top_m: int, phi_kind: str, phi_shift: float):  # noqa: E741
+    def __init__(  # noqa: PLR0913
+        self,
+        l: int,  # noqa: E741
+        max_size: int,
+        top_m: int,
+        phi_kind: str,
+        phi_shift: float,
+        joins: bool = True,
+        rank_beta: float = 3.0,
+    ):
         self.l, self.max_size, self.top_m = l, max_size, top_m
         self.phi_kind, self.phi_shift = phi_kind, phi_shift
+        self.joins, self.rank_beta = joins, rank_beta
+        self.learner_returns: dict[int, float] = {}
+        """member → mean team return of the latest candidate's hyperedges that hold it"""
         self.hyfog = HyFoG(l=l, max_size=max_size + 1)
         self.slots: dict[int, int] = {}  # member node → population slot
         self.next_node = 0
@@ -107,8 +124,15 @@ class Population:
 
     def record(self, results: Iterable[EdgeResult]) -> None:
         """Write measured hyperedge weights into the HyFoG."""
+        results = list(results)
         for r in results:
             self.hyfog.set_weight(r.nodes, r.team_return, r.episodes)
+        if self.candidate is not None:
+            with_candidate = [r for r in results if self.candidate in r.nodes]
+            for member in self.members:
+                returns = [r.team_return for r in with_candidate if member in r.nodes]
+                if returns:
+                    self.learner_returns[member] = float(np.mean(returns))
 
     def decide(self) -> Decision:
         """Accept the candidate if its η rank is within the top m; seat it, replacing the
@@ -119,7 +143,7 @@ class Population:
         rank = rank_of(self.hyfog, node)
         eta = centrality(self.hyfog)[node]
         replaced = slot = None
-        accepted = rank <= self.top_m
+        accepted = self.joins and rank <= self.top_m
         if accepted:
             if len(self.slots) >= self.max_size:
                 replaced = lowest_centrality(self.hyfog, exclude=node)
@@ -128,6 +152,7 @@ class Population:
             else:
                 slot = min(set(range(self.max_size)) - set(self.slots.values()))
             self.slots[node] = slot
+            self.learner_returns.pop(replaced, None)
         else:
             self.hyfog.remove_node(node)
         self.candidate = None
@@ -143,14 +168,26 @@ class Population:
         return g
 
     def phi(self) -> dict[int, float]:
-        """Partner distribution over members (SPEC §4): higher for lower node value."""
+        """Partner distribution over members (see the module doc)."""
+        members = self.members
+        if self.phi_kind == "uniform":
+            return {v: 1.0 / len(members) for v in members}
+        if self.phi_kind == "rank":
+            return rank_priorities(
+                {v: self.learner_returns.get(v) for v in members}, self.rank_beta
+            )
         return phi(self.member_graph(), self.phi_kind, self.phi_shift)
 
     def eta(self) -> dict[int, float]:
         return centrality(self.member_graph())
 
     def values(self) -> dict[int, float | None]:
-        """The node values φ inverts (Myerson value or mean hyperedge reward)."""
+        """The node values φ is drawn by: the Myerson value or mean hyperedge reward, the
+        learner's return with each member (rank), none (uniform)."""
+        if self.phi_kind == "uniform":
+            return dict.fromkeys(self.members)
+        if self.phi_kind == "rank":
+            return {v: self.learner_returns.get(v) for v in self.members}
         return node_values(self.member_graph(), self.phi_kind)
 
     # ---- persistence --------------------------------------------------------------------
@@ -163,6 +200,9 @@ class Population:
             "top_m": self.top_m,
             "phi_kind": self.phi_kind,
             "phi_shift": self.phi_shift,
+            "joins": self.joins,
+            "rank_beta": self.rank_beta,
+            "learner_returns": {str(k): v for k, v in self.learner_returns.items()},
             "next_node": self.next_node,
             "slots": {str(k): v for k, v in self.slots.items()},
             "hyfog": self.hyfog.to_dict(),
@@ -170,11 +210,45 @@ class Population:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Population:
-        p = cls(data["l"], data["max_size"], data["top_m"], data["phi_kind"], data["phi_shift"])
+        p = cls(
+            data["l"],
+            data["max_size"],
+            data["top_m"],
+            data["phi_kind"],
+            data["phi_shift"],
+            joins=data.get("joins", True),
+            rank_beta=data.get("rank_beta", 3.0),
+        )
+        p.learner_returns = {int(k): v for k, v in data.get("learner_returns", {}).items()}
         p.hyfog = HyFoG.from_dict(data["hyfog"])
         p.slots = {int(k): int(v) for k, v in data["slots"].items()}
         p.next_node = int(data["next_node"])
         return p
+
+
+def rank_priorities(returns: dict[int, float | None], beta: float) -> dict[int, float]:
+    """MEP's prioritised sampling (Zhao et al. 2023), p ∝ rank(1/R)^β: the members ranked
+    by the learner's return R with them, rank 1 for the highest, n for the lowest (the
+    order of 1/R when returns are positive, and defined for any sign); tied returns share
+    their mean rank; a member without a return yet ranks n. No returns at all: uniform."""
+    members = list(returns)
+    if not members:
+        return {}
+    known = {v: r for v, r in returns.items() if r is not None}
+    if not known:
+        return {v: 1.0 / len(members) for v in members}
+    low = min(known.values())
+    # unmeasured members tie with (just below) the lowest: they rank last
+    x = np.array([known.get(v, low - 1.0) for v in members], dtype=np.float64)
+    order = np.argsort(-x, kind="stable")
+    ranks = np.empty(len(x))
+    ranks[order] = np.arange(1, len(x) + 1)
+    for value in np.unique(x):  # ties share their mean rank
+        tied = x == value
+        ranks[tied] = ranks[tied].mean()
+    weights = ranks**beta
+    weights /= weights.sum()
+    return dict(zip(members, weights.tolist(), strict=True))
 
 
 def edge_seed(run_seed: int, generation: int, nodes: Sequence[int]) -> int:
