@@ -187,6 +187,10 @@ def load_member(folder: Path, mid: str, entry: dict[str, Any], config: PursuitCo
     )
     if kind not in ("ppo", "d3qn"):
         raise PoolError(f"pool {folder.name}: member {mid} has an unknown kind {kind!r}")
+    if kind == "d3qn" and scenario["n_pursuers"] == config.n_pursuers:
+        # D3QN-G reads the first evader only and plays Greedy once it is caught (SPEC §3):
+        # it plays any number of evaders as it is
+        return load_policy(folder / entry["file"], config, name=entry["name"])
     policy = load_policy(folder / entry["file"], trained, name=entry["name"])
     if trained.n_evaders == config.n_evaders:
         return policy

@@ -106,3 +106,16 @@ def test_the_committed_pools_load_and_play_their_recorded_table_ii(name):
         again = measure(members[mid], config, episodes, recorded["seeds"])
         for key in ("success", "length", "collision"):  # play is deterministic
             assert round(again[key], 2) == round(recorded[key], 2), (mid, key)
+
+
+def test_d3qn_g_trained_against_one_evader_plays_two_as_it_is():
+    from hola_ray.evaluation.rollout import rollout
+    from hola_ray.policies.d3qn import D3QNG
+
+    members = load_pool("het", TWO)
+    for mid in ("d3qn-g-1", "d3qn-g-2"):
+        assert isinstance(members[mid], D3QNG) and members[mid].config.n_evaders == 2
+        result = rollout(TWO, [members[mid]] * 3, episodes=8)
+        assert result.episodes == 8
+    with pytest.raises(PoolError, match="PPO \\(1\\) was trained with 2 evader"):
+        load_pool("hot", dataclasses.replace(TWO, n_evaders=3))

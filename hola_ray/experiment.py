@@ -1,0 +1,529 @@
+"""The paper's experiment on Ray: every method × seed, then the zero-shot evaluation.
+
+    python -m hola_ray.experiment --config configs/experiments/X.yaml [--out DIR]
+    python -m hola_ray.experiment --resume DIR
+
+An experiment config names a base run config, the methods (each with its own overrides
+of the base), the seeds and the evaluation:
+
+    base: configs/default.yaml        # relative to the repository root or to this file
+    overrides: {env: {n_evaders: 2}}  # applied to every trial (optional)
+    methods:                          # method → overrides for its trials ({} for none)
+      hola: {}
+      sp: {generations: 12}
+    seeds: [0, 1, 2]
+    parallel: 0                       # trials at once; 0: as many as the cluster's CPUs allow
+    evaluation: {episodes: 50, seeds: [0, 1, 2], cell_episodes: 10, pools: [hot, het],
+                 learner: final}      # final: learner.pt; best: best.pt
+
+Each trial (method × seed) is one `Trainer` run in `DIR/trials/<method>-s<seed>/`, run as a
+Ray task; up to `parallel` of them at once, spread over the cluster's nodes (each trial's
+env runners and member actors are scheduled by Ray wherever CPUs are free). A trial whose
+run directory holds its last generation is done and never rerun: `--resume DIR` skips it,
+continues a trial that was cut short from its last complete generation and starts the
+rest. Then every trial's learner is evaluated against the pools (`hola_ray.evaluate`, one
+Ray task per trial, cached in `DIR/evaluation/`), and the experiment writes
+`DIR/results.json` (per trial and per method), `DIR/results.md` and `DIR/figure.png`
+(the paper's Fig. 4 layout, one bar per method: the mean over its seeds, error bars the
+standard error over seeds). While it runs, a line every few seconds (and
+`DIR/progress.json`) says which trials run, wait or are done.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import os
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from hola_ray.env.config import ConfigError
+from hola_ray.methods.config import METHODS, RunConfig
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIG_NAME = "experiment.yaml"
+METRICS = ("success", "collision", "length")
+
+
+# ---- the config ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EvaluationSettings:
+    episodes: int = 50
+    seeds: tuple[int, ...] = (0, 1, 2)
+    cell_episodes: int = 10
+    pools: tuple[str, ...] = ("hot", "het")
+    learner: str = "final"
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A validated experiment config: one run config per trial, and the evaluation."""
+
+    base: str
+    methods: dict[str, dict[str, Any]]
+    seeds: tuple[int, ...]
+    overrides: dict[str, Any] = field(default_factory=dict)
+    parallel: int = 0
+    evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
+    source: Path | None = None
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> Experiment:
+        path = Path(path)
+        if not path.is_file():
+            raise ConfigError(f"experiment config {path} does not exist")
+        raw = yaml.safe_load(path.read_text()) or {}
+        allowed = {"base", "overrides", "methods", "seeds", "parallel", "evaluation"}
+        if not isinstance(raw, Mapping) or set(raw) - allowed:
+            unknown = sorted(set(raw) - allowed) if isinstance(raw, Mapping) else raw
+            raise ConfigError(f"{path}: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
+        for key in ("base", "methods", "seeds"):
+            if key not in raw:
+                raise ConfigError(f"{path}: `{key}` is required")
+        methods = raw["methods"]
+        if isinstance(methods, list):
+            methods = dict.fromkeys(methods)
+        if not isinstance(methods, Mapping) or not methods:
+            raise ConfigError(f"{path}: methods must be a non-empty mapping method → overrides")
+        unknown = sorted(set(methods) - set(METHODS))
+        if unknown:
+            raise ConfigError(f"{path}: unknown method(s) {unknown}; known: {sorted(METHODS)}")
+        seeds = raw["seeds"]
+        if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) for s in seeds):
+            raise ConfigError(f"{path}: seeds must be a non-empty list of integers")
+        ev = raw.get("evaluation") or {}
+        bad = set(ev) - {f for f in EvaluationSettings.__dataclass_fields__}
+        if bad:
+            raise ConfigError(f"{path}: unknown evaluation key(s) {sorted(bad)}")
+        ev = {k: tuple(v) if isinstance(v, list) else v for k, v in ev.items()}
+        evaluation = EvaluationSettings(**ev)
+        if evaluation.learner not in ("final", "best"):
+            raise ConfigError(f"{path}: evaluation.learner must be final or best")
+        exp = cls(
+            base=str(raw["base"]),
+            methods={m: dict(o or {}) for m, o in methods.items()},
+            seeds=tuple(seeds),
+            overrides=dict(raw.get("overrides") or {}),
+            parallel=int(raw.get("parallel", 0)),
+            evaluation=evaluation,
+            source=path,
+        )
+        for name in exp.trials():  # every trial's run config is valid before Ray starts
+            try:
+                exp.run_config(name)
+            except ConfigError as err:
+                raise ConfigError(f"{path}: trial {name}: {err}") from err
+        return exp
+
+    def base_path(self) -> Path:
+        """The base run config: relative to the experiment file, else to the repository."""
+        base = Path(self.base)
+        if base.is_absolute():
+            return base
+        if self.source is not None and (self.source.parent / base).is_file():
+            return self.source.parent / base
+        return ROOT / base
+
+    def trials(self) -> list[str]:
+        """Trial names, method by method: `<method>-s<seed>`."""
+        return [trial_name(m, s) for m in self.methods for s in self.seeds]
+
+    def run_config(self, trial: str) -> RunConfig:
+        method, seed = parse_trial(trial)
+        base = yaml.safe_load(self.base_path().read_text()) or {}
+        merged = deep_merge(deep_merge(base, self.overrides), self.methods[method])
+        merged.update(method=method, seed=seed)
+        return RunConfig.from_dict(merged)
+
+
+def trial_name(method: str, seed: int) -> str:
+    return f"{method}-s{seed}"
+
+
+def parse_trial(trial: str) -> tuple[str, int]:
+    method, _, seed = trial.rpartition("-s")
+    return method, int(seed)
+
+
+def deep_merge(base: Mapping[str, Any], patch: Mapping[str, Any]) -> dict[str, Any]:
+    """`base` with `patch` laid over it, mappings merged key by key."""
+    out = copy.deepcopy(dict(base))
+    for key, value in patch.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = deep_merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+# ---- trials on Ray --------------------------------------------------------------------------
+def trial_state(run_dir: Path, generations: int) -> tuple[str, int | None]:
+    """('done' | 'partial' | 'new', last complete generation) of a trial's run directory."""
+    from hola_ray.population.rundir import RunDir
+
+    last = RunDir(run_dir).last_completed()
+    if last is None:
+        return "new", None
+    return ("done" if last >= generations else "partial"), last
+
+
+def _run_trial(config: dict[str, Any], run_dir: str) -> str:
+    from hola_ray.methods.hola import Trainer
+
+    Trainer(RunConfig.from_dict(config), Path(run_dir), progress=False).fit()
+    return run_dir
+
+
+def _evaluate_trial(learner: str, settings: dict[str, Any], n_evaders: int) -> dict[str, Any]:
+    from hola_ray.env.config import PursuitConfig
+    from hola_ray.evaluate import evaluate, load_learner, pools
+
+    config = PursuitConfig(n_evaders=n_evaders)
+    members = pools(list(settings["pools"]), [], config)
+    name, policy = load_learner(Path(learner), config)
+    results = evaluate(
+        {name: policy},
+        members,
+        config,
+        settings["episodes"],
+        list(settings["seeds"]),
+        settings["cell_episodes"],
+        say=lambda *_: None,
+    )
+    return results[name]
+
+
+class Runner:
+    """Runs an experiment's trials as Ray tasks, evaluates them and writes the results."""
+
+    def __init__(self, experiment: Experiment, out: Path, say=print, poll_s: float = 5.0):
+        self.exp = experiment
+        self.out = Path(out)
+        self.say = say
+        self.poll_s = poll_s
+        self.trials_dir = self.out / "trials"
+        self.eval_dir = self.out / "evaluation"
+
+    def trial_dir(self, trial: str) -> Path:
+        return self.trials_dir / trial
+
+    def states(self) -> dict[str, tuple[str, int | None]]:
+        return {
+            t: trial_state(self.trial_dir(t), self.exp.run_config(t).generations)
+            for t in self.exp.trials()
+        }
+
+    def parallel(self) -> int:
+        """Trials at once: the config's, else the cluster's CPUs over a trial's CPUs (its
+        learner process and its env runners)."""
+        import ray
+
+        if self.exp.parallel > 0:
+            return self.exp.parallel
+        cpus = int(ray.cluster_resources().get("CPU", 1))
+        need = max(1 + self.exp.run_config(t).oracle.env_runners for t in self.exp.trials())
+        return max(1, cpus // need)
+
+    # ---- phase 1: training ------------------------------------------------------------------
+    def train(self) -> None:
+        import ray
+
+        states = self.states()
+        todo = [t for t, (s, _) in states.items() if s != "done"]
+        for t, (s, last) in states.items():
+            if s == "done":
+                self.say(f"{t}: done (generation {last}), not rerun")
+            elif s == "partial":
+                self.say(f"{t}: resumes after generation {last}")
+        if not todo:
+            return
+        remote = ray.remote(num_cpus=0, max_retries=0)(_run_trial)
+        width = self.parallel()
+        self.say(f"training {len(todo)} trial(s), {width} at a time")
+        running: dict[Any, str] = {}
+        started: dict[str, float] = {}
+        failed: dict[str, str] = {}
+        waiting = list(todo)
+        last_view = 0.0
+        while waiting or running:
+            while waiting and len(running) < width:
+                t = waiting.pop(0)
+                config = self.exp.run_config(t)
+                ref = remote.options(scheduling_strategy="SPREAD").remote(
+                    config.to_dict(), str(self.trial_dir(t).resolve())
+                )
+                running[ref] = t
+                started[t] = time.monotonic()
+            ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_s)
+            for ref in ready:
+                t = running.pop(ref)
+                try:
+                    ray.get(ref)
+                    took = time.monotonic() - started[t]
+                    self.say(f"{t}: done in {took / 60:.1f} min")
+                except Exception as err:  # noqa: BLE001 - one failed trial must not stop the rest
+                    failed[t] = f"{type(err).__name__}: {str(err).splitlines()[-1][:300]}"
+                    self.say(f"{t}: FAILED: {failed[t]}")
+            if time.monotonic() - last_view >= max(self.poll_s, 10.0) or ready:
+                self.view(running.values(), waiting, failed)
+                last_view = time.monotonic()
+        if failed:
+            raise RuntimeError(
+                f"{len(failed)} trial(s) failed: {', '.join(failed)}; fix and run "
+                f"`python -m hola_ray.experiment --resume {self.out}`"
+            )
+
+    def view(self, running: Sequence[str], waiting: Sequence[str], failed: Mapping[str, str]):
+        """One progress line and DIR/progress.json: which trials run, wait or are done."""
+        states = self.states()
+        rows = {}
+        for t, (s, last) in states.items():
+            total = self.exp.run_config(t).generations
+            if t in failed:
+                status = "failed"
+            elif s == "done":
+                status = "done"
+            elif t in running:
+                status = "running"
+            else:
+                status = "waiting"
+            rows[t] = {"status": status, "generation": last, "generations": total}
+        _atomic_json(self.out / "progress.json", rows)
+        counts = {k: sum(r["status"] == k for r in rows.values()) for k in ("done", "running")}
+        busy = ", ".join(
+            f"{t} gen {rows[t]['generation'] if rows[t]['generation'] is not None else '-'}"
+            f"/{rows[t]['generations']}"
+            for t in running
+        )
+        self.say(
+            f"[{time.strftime('%H:%M:%S')}] trials: {counts['done']} done, "
+            f"{counts['running']} running ({busy or 'none'}), {len(waiting)} waiting"
+            + (f", {len(failed)} failed" if failed else "")
+        )
+
+    # ---- phase 2: evaluation ----------------------------------------------------------------
+    def learner_file(self, trial: str) -> Path:
+        root = self.trial_dir(trial)
+        return root / ("best.pt" if self.exp.evaluation.learner == "best" else "learner.pt")
+
+    def evaluate(self) -> dict[str, dict[str, Any]]:
+        import ray
+
+        self.eval_dir.mkdir(parents=True, exist_ok=True)
+        settings = {
+            "episodes": self.exp.evaluation.episodes,
+            "seeds": list(self.exp.evaluation.seeds),
+            "cell_episodes": self.exp.evaluation.cell_episodes,
+            "pools": list(self.exp.evaluation.pools),
+        }
+        results: dict[str, dict[str, Any]] = {}
+        pending: dict[Any, str] = {}
+        remote = ray.remote(num_cpus=1, max_retries=1)(_evaluate_trial)
+        for t in self.exp.trials():
+            cached = self.eval_dir / f"{t}.json"
+            if cached.is_file():
+                saved = json.loads(cached.read_text())
+                if saved.get("settings") == settings:
+                    results[t] = saved["pools"]
+                    continue
+            evaders = self.exp.run_config(t).env.n_evaders
+            ref = remote.remote(str(self.learner_file(t).resolve()), settings, evaders)
+            pending[ref] = t
+        if pending:
+            self.say(f"evaluating {len(pending)} learner(s) against {', '.join(settings['pools'])}")
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            t = pending.pop(ready[0])
+            results[t] = ray.get(ready[0])
+            _atomic_json(self.eval_dir / f"{t}.json", {"settings": settings, "pools": results[t]})
+            figures = "; ".join(
+                f"{p} success {r['success']:.1%}, collision {r['collision']:.1%}"
+                for p, r in results[t].items()
+            )
+            self.say(f"{t}: {figures}")
+        return {t: results[t] for t in self.exp.trials()}
+
+    # ---- phase 3: results -------------------------------------------------------------------
+    def write_results(self, per_trial: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+        from hola_ray.evaluate import plot
+
+        methods = aggregate(per_trial, list(self.exp.methods))
+        keep = ("success", "collision", "length")
+        trials = {
+            t: {
+                "method": parse_trial(t)[0],
+                "seed": parse_trial(t)[1],
+                "pools": {
+                    p: {k: r[k] for k in keep}
+                    | {f"{k}_se": r[f"{k}_se"] for k in keep}
+                    | {"score": r["score_iqm"]}
+                    for p, r in pools_.items()
+                },
+            }
+            for t, pools_ in per_trial.items()
+        }
+        results = {
+            "experiment": str(self.exp.source) if self.exp.source else None,
+            "base": self.exp.base,
+            "seeds": list(self.exp.seeds),
+            "evaluation": {
+                "episodes_per_seed": self.exp.evaluation.episodes,
+                "seeds": list(self.exp.evaluation.seeds),
+                "learner": self.exp.evaluation.learner,
+            },
+            "trials": trials,
+            "methods": methods,
+        }
+        _atomic_json(self.out / "results.json", results)
+        figure_input = {
+            m: {p: {**r, "score_iqm": r["score"]} for p, r in pools_.items()}
+            for m, pools_ in methods.items()
+        }
+        png, _ = plot(figure_input, self.out)
+        png.replace(self.out / "figure.png")
+        (self.out / "evaluation.md").unlink(missing_ok=True)
+        (self.out / "results.md").write_text(results_table(methods, len(self.exp.seeds)))
+        return results
+
+    def run(self) -> dict[str, Any]:
+        self.train()
+        per_trial = self.evaluate()
+        results = self.write_results(per_trial)
+        self.say(f"wrote {self.out / 'results.json'}, results.md and figure.png")
+        return results
+
+
+def aggregate(
+    per_trial: Mapping[str, Mapping[str, Mapping[str, Any]]], methods: Sequence[str]
+) -> dict[str, dict[str, dict[str, Any]]]:
+    """Per method and pool: the mean over its seeds' trials; `_se` the standard error over
+    seeds (with one seed: that trial's own standard error over evaluation seeds) and `_ci95`
+    a 95 % bootstrap interval over every (trial seed, evaluation seed) figure."""
+    from hola_ray.evaluate import bootstrap_ci
+
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    for method in methods:
+        trials = [r for t, r in per_trial.items() if parse_trial(t)[0] == method]
+        pools_ = sorted({p for r in trials for p in r})
+        out[method] = {}
+        for pool in pools_:
+            rows = [r[pool] for r in trials if pool in r]
+            figures: dict[str, Any] = {"trials": len(rows)}
+            for m in (*METRICS, "score"):
+                key = "score_iqm" if m == "score" else m
+                values = np.array([r[key] for r in rows], dtype=np.float64)
+                figures[m] = float(values.mean())
+                if len(values) > 1:
+                    figures[f"{m}_se"] = float(values.std(ddof=1) / np.sqrt(len(values)))
+                else:
+                    figures[f"{m}_se"] = float(rows[0].get(f"{key}_se", 0.0))
+                if m != "score":
+                    every = np.concatenate([r[f"{m}_per_seed"] for r in rows])
+                    figures[f"{m}_ci95"] = [round(x, 4) for x in bootstrap_ci(every)]
+            out[method][pool] = figures
+    return out
+
+
+def results_table(methods: Mapping[str, Mapping[str, Mapping[str, Any]]], seeds: int) -> str:
+    lines = [
+        f"Mean over {seeds} seed(s) ± standard error over seeds; [95 % bootstrap interval].",
+        "",
+        "| method | pool | success | collision | length | score (IQM) |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
+    for method, pools_ in methods.items():
+        for pool in sorted(pools_, key=lambda p: (p != "hot", p)):
+            r = pools_[pool]
+            lo, hi = r["success_ci95"]
+            lines.append(
+                f"| {method} | {pool} | {r['success']:.1%} ± {r['success_se']:.1%} "
+                f"[{lo:.0%}, {hi:.0%}] | {r['collision']:.1%} ± {r['collision_se']:.1%} | "
+                f"{r['length']:.0f} ± {r['length_se']:.0f} | {r['score']:.3f} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def _atomic_json(path: Path, data: Any) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1))
+    os.replace(tmp, path)
+
+
+# ---- command line ---------------------------------------------------------------------------
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m hola_ray.experiment", description=__doc__.split("\n\n")[0]
+    )
+    parser.add_argument("--config", type=Path, help="experiment YAML (configs/experiments/)")
+    parser.add_argument("--out", type=Path, help="experiment directory (default runs/<name>-…)")
+    parser.add_argument("--resume", type=Path, metavar="DIR", help="continue an experiment")
+    parser.add_argument("--num-cpus", type=int, help="CPUs of the local Ray (default: all)")
+    args = parser.parse_args(argv)
+    try:
+        if args.resume is not None:
+            if args.config is not None or args.out is not None:
+                raise ConfigError("--resume DIR takes the experiment's own config; drop --config")
+            saved = args.resume / CONFIG_NAME
+            if not saved.is_file():
+                raise ConfigError(f"--resume {args.resume}: no {CONFIG_NAME} there")
+            experiment, out = Experiment.from_yaml(saved), args.resume
+        elif args.config is None:
+            raise ConfigError("give --config configs/experiments/X.yaml or --resume DIR")
+        else:
+            experiment = Experiment.from_yaml(args.config)
+            out = args.out or Path("runs") / time.strftime(f"{args.config.stem}-%Y%m%d-%H%M%S")
+            if (out / CONFIG_NAME).is_file():
+                raise ConfigError(f"{out} already holds an experiment; continue it with --resume")
+    except ConfigError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    if args.resume is None:
+        out.mkdir(parents=True, exist_ok=True)
+        # the base is resolved now, so that the saved copy does not depend on where it lives
+        saved = {
+            "base": str(experiment.base_path().resolve()),
+            "overrides": experiment.overrides,
+            "methods": experiment.methods,
+            "seeds": list(experiment.seeds),
+            "parallel": experiment.parallel,
+            "evaluation": {
+                k: list(v) if isinstance(v, tuple) else v
+                for k, v in experiment.evaluation.__dict__.items()
+            },
+        }
+        (out / CONFIG_NAME).write_text(yaml.safe_dump(saved, sort_keys=False))
+    import ray
+
+    from hola_ray.population.coordinator import NAMESPACE
+
+    if os.environ.get("RAY_ADDRESS"):
+        ray.init(namespace=NAMESPACE)
+    else:
+        ray.init(
+            address="local", namespace=NAMESPACE, num_cpus=args.num_cpus, include_dashboard=False
+        )
+    trials = experiment.trials()
+    print(
+        f"experiment in {out}: {len(experiment.methods)} method(s) × {len(experiment.seeds)} "
+        f"seed(s) = {len(trials)} trials; base {experiment.base}",
+        flush=True,
+    )
+    try:
+        Runner(experiment, out, say=lambda s: print(s, flush=True)).run()
+    except RuntimeError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,150 @@
+"""The experiment end to end: the smoke experiment's trials as Ray work, a SIGKILL after
+its first finished trial, `--resume` that does not rerun it, and results.json with every
+method × seed × pool. Plus the config's checks and the aggregation, without Ray."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from hola_ray.env.config import ConfigError
+from hola_ray.experiment import Experiment, aggregate, deep_merge, trial_state
+
+ROOT = Path(__file__).resolve().parent.parent
+SMOKE = ROOT / "configs" / "experiments" / "smoke.yaml"
+
+
+def experiment(*args: str, **kwargs) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "hola_ray.experiment", *args]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=ROOT, **kwargs)
+
+
+def digest(folder: Path) -> str:
+    h = hashlib.sha256()
+    for p in sorted(folder.rglob("*")):
+        if p.is_file():
+            h.update(str(p.relative_to(folder)).encode() + p.read_bytes())
+    return h.hexdigest()
+
+
+def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(tmp_path):
+    config = yaml.safe_load(SMOKE.read_text())
+    config["base"] = str(ROOT / "configs" / "smoke.yaml")
+    config["parallel"] = 1  # one trial at a time, so that one is done while the other runs
+    path = tmp_path / "smoke.yaml"
+    path.write_text(yaml.safe_dump(config))
+    out = tmp_path / "exp"
+    cmd = [sys.executable, "-m", "hola_ray.experiment", "--config", str(path), "--out", str(out)]
+    driver = subprocess.Popen(
+        cmd, cwd=ROOT, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    first = out / "trials" / "hola-s0"
+    deadline = time.monotonic() + 300
+    while trial_state(first, 1)[0] != "done":
+        assert driver.poll() is None, "the experiment ended before it could be killed"
+        assert time.monotonic() < deadline, "the first trial never finished"
+        time.sleep(0.2)
+    os.killpg(driver.pid, signal.SIGKILL)  # the driver and the local Ray it started
+    driver.wait()
+    assert trial_state(out / "trials" / "sp-s0", 1)[0] != "done"
+    kept = digest(first)
+
+    done = experiment("--resume", str(out))
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "hola-s0: done (generation 1), not rerun" in done.stdout
+    assert digest(first) == kept  # the finished trial was not touched
+    assert trial_state(out / "trials" / "sp-s0", 1)[0] == "done"
+
+    results = json.loads((out / "results.json").read_text())
+    assert set(results["trials"]) == {"hola-s0", "sp-s0"}
+    for trial in results["trials"].values():
+        assert set(trial["pools"]) == {"hot", "het"}
+        for figures in trial["pools"].values():
+            for key in ("success", "collision", "length", "score"):
+                assert np.isfinite(figures[key])
+            assert 0 <= figures["success"] <= 1 and 0 <= figures["score"] <= 1
+    assert set(results["methods"]) == {"hola", "sp"}
+    assert (out / "figure.png").stat().st_size > 0
+    assert "| hola | het |" in (out / "results.md").read_text()
+    progress = json.loads((out / "progress.json").read_text())
+    assert {row["status"] for row in progress.values()} == {"done"}
+
+    # evaluations are cached: a second resume trains and evaluates nothing
+    again = experiment("--resume", str(out))
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "evaluating" not in again.stdout and again.stdout.count("not rerun") == 2
+
+
+def test_each_trial_is_the_base_with_the_experiment_and_method_overrides(tmp_path):
+    path = tmp_path / "x.yaml"
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "base": str(ROOT / "configs" / "smoke.yaml"),
+                "overrides": {"env": {"n_evaders": 1}},
+                "methods": {"hola": {}, "sp": {"generations": 3, "oracle": {"lr": 1e-3}}},
+                "seeds": [4, 5],
+            }
+        )
+    )
+    exp = Experiment.from_yaml(path)
+    assert exp.trials() == ["hola-s4", "hola-s5", "sp-s4", "sp-s5"]
+    sp = exp.run_config("sp-s5")
+    assert (sp.method, sp.seed, sp.generations, sp.oracle.lr) == ("sp", 5, 3, 1e-3)
+    assert sp.oracle.train_batch == 1000 and sp.env.n_evaders == 1 and sp.env.horizon == 200
+    hola = exp.run_config("hola-s4")
+    assert (hola.method, hola.seed, hola.generations, hola.oracle.lr) == ("hola", 4, 1, 3e-4)
+    assert deep_merge({"a": {"b": 1, "c": 2}}, {"a": {"b": 3}}) == {"a": {"b": 3, "c": 2}}
+
+
+@pytest.mark.parametrize(
+    ("patch", "message"),
+    [
+        ({"methods": {"hola_x": {}}}, r"unknown method\(s\) \['hola_x'\]"),
+        ({"seeds": []}, "seeds must be a non-empty list"),
+        ({"color": 1}, r"unknown key\(s\) \['color'\]"),
+        ({"methods": {"sp": {"oracle": {"env_steps": -1}}}}, "trial sp-s0: oracle.env_steps"),
+        ({"evaluation": {"learner": "last"}}, "evaluation.learner must be final or best"),
+    ],
+)
+def test_a_bad_experiment_config_is_one_clear_error(tmp_path, patch, message):
+    config = yaml.safe_load(SMOKE.read_text()) | {"base": str(ROOT / "configs" / "smoke.yaml")}
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(config | patch))
+    with pytest.raises(ConfigError, match=message):
+        Experiment.from_yaml(path)
+
+
+def test_a_method_is_the_mean_over_its_seeds_with_the_standard_error_over_seeds():
+    def trial(success):
+        return {
+            "hot": {
+                "success": success,
+                "success_se": 0.01,
+                "success_per_seed": [success, success],
+                "collision": 0.5,
+                "collision_se": 0.0,
+                "collision_per_seed": [0.5, 0.5],
+                "length": 400.0,
+                "length_se": 1.0,
+                "length_per_seed": [400.0, 400.0],
+                "score_iqm": 0.5,
+            }
+        }
+
+    out = aggregate({"hola-s0": trial(0.2), "hola-s1": trial(0.4), "sp-s0": trial(0.9)}, ["hola"])
+    hot = out["hola"]["hot"]
+    assert hot["success"] == pytest.approx(0.3) and hot["trials"] == 2
+    assert hot["success_se"] == pytest.approx(np.std([0.2, 0.4], ddof=1) / np.sqrt(2))
+    lo, hi = hot["success_ci95"]
+    assert 0.2 <= lo <= 0.3 <= hi <= 0.4
