@@ -207,3 +207,41 @@ def test_best_response_methods_keep_their_population_fixed(tmp_path, method):
         assert set(returns) == set(range(size))  # every member met the learner
         full = {v: returns.get(v) for v in range(size)}
         assert {int(k): v for k, v in phi.items()} == pytest.approx(rank_priorities(full, 3.0))
+
+
+def test_pbt_trains_its_agents_in_turn_and_exploits_the_best(tmp_path):
+    """pbt: three agents trained jointly, then one per generation with the other two; after
+    each has trained once, the lowest-scoring one takes the best one's weights (and lr and
+    entropy coefficient, perturbed)."""
+    import json
+
+    import torch
+
+    config = tmp_path / "pbt.yaml"
+    smoke = yaml.safe_load(SMOKE.read_text())
+    patch = {"method": "pbt", "generations": 3, "pbt": {"quantile": 0.34}}
+    config.write_text(yaml.safe_dump(smoke | patch))
+    out = tmp_path / "pbt"
+    done = main_job("--config", str(config), "--out", str(out))
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "pre-trained 3 members jointly (PBT's start)" in done.stdout
+    r = RunDir(out)
+    states = [json.loads((r.generation(g) / "state.json").read_text()) for g in (1, 2, 3)]
+    assert [s["decision"]["slot"] for s in states] == [0, 1, 2]  # each agent in turn
+    assert all(s["decision"]["replaced"] == g for g, s in enumerate(states))  # its parent
+    last = states[-1]
+    scores = {int(k): v for k, v in last["population"]["agent_scores"].items()}
+    hyper = {int(k): v for k, v in last["population"]["agent_hyper"].items()}
+    source = last["decision"]["copied_from"]
+    slots = {int(k): v for k, v in last["population"]["slots"].items()}
+    if source is not None:  # agent 2 was the lowest: it exploits the best agent
+        top = slots[source]
+        assert scores[2] == scores[top] == max(scores.values())
+        assert hyper[2] != hyper[top]  # explored
+        candidate = last["decision"]["candidate"]
+        copied = torch.load(r.member_export(candidate), weights_only=False)
+        original = torch.load(r.member_export(source), weights_only=False)
+        for w1, w2 in zip(copied["weights"], original["weights"], strict=True):
+            assert torch.equal(w1, w2)
+    else:  # agent 2 scored above the lowest: nobody exploits on its turn
+        assert scores[2] > min(scores.values())

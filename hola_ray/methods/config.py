@@ -25,7 +25,7 @@ SAMPLERS = ("batched", "pettingzoo")
 """oracle.sampler: how the Oracle's env runners sample (OracleConfig.sampler)."""
 
 
-POPULATIONS = ("mep", "fcp", "none")
+POPULATIONS = ("mep", "fcp", "pbt", "none")
 """Method.population: how the partner population is built."""
 PARTNER_DRAWS = ("myerson", "mean_reward", "uniform", "rank")
 """Method.phi_kind: how the Oracle draws partners from the population."""
@@ -43,14 +43,17 @@ class Method:
     population: str
     """mep: pre-trained jointly with the population-entropy bonus (MEP, Zhao 2023);
     fcp: self-play agents of `fcp.agents` seeds, each at the start, middle and end of its
-    training (FCP, Strouse 2021); none: no partners (self-play)"""
+    training (FCP, Strouse 2021); pbt: `population.initial_size` PPO agents trained jointly
+    with each other (the MEP pre-training without its entropy bonus), then each trained in
+    turn (PBT); none: no partners (self-play)"""
     phi_kind: str | None
     """myerson / mean_reward: φ = the shifted inverse of that node value (SPEC §4);
     uniform: every member equally; rank: p ∝ rank^β, rank 1 for the partner the learner
     scores best with (MEP's prioritised sampling, rank(1/return)^β); None: self-play"""
     joins: bool
-    """the learner joins the population when its η rank is within the top m; False: the
-    population stays fixed and the learner is its best response"""
+    """the learner joins the population when its η rank is within the top m (pbt: it
+    replaces the agent it was trained from); False: the population stays fixed and the
+    learner is its best response"""
     description: str
     """one line for help texts"""
 
@@ -99,6 +102,13 @@ METHODS = {
             "rank",
             False,
             "MEP: a best response to the MEP population, prioritised by rank(1/return)^β",
+        ),
+        Method(
+            "pbt",
+            "pbt",
+            "uniform",
+            True,
+            "PBT: agents trained in turn with the others, exploit and explore (lr, entropy)",
         ),
     )
 }
@@ -263,6 +273,26 @@ class PopulationConfig:
 
 
 @dataclass(frozen=True)
+class PBTConfig:
+    """Population-based training's exploit and explore (method pbt; Jaderberg et al. 2017
+    as Carroll et al. 2019 use it). Each generation trains one agent, in turn, with
+    partners drawn uniformly from the other agents; it then replaces its earlier self."""
+
+    quantile: float = 0.25
+    """an agent scoring in the bottom quantile copies one from the top quantile (exploit)"""
+    perturb: tuple[float, ...] = (0.8, 1.2)
+    """and multiplies that agent's lr and entropy coefficient by a factor drawn from these
+    (explore)"""
+
+    def validate(self) -> None:
+        _finite("pbt", self, "quantile", 0.01, 0.5, "in [0.01, 0.5]")
+        ok = len(self.perturb) >= 1 and all(
+            isinstance(f, int | float) and 0 < f < 10 for f in self.perturb
+        )
+        require(ok, "pbt.perturb", "a non-empty list of factors in (0, 10)", self.perturb)
+
+
+@dataclass(frozen=True)
 class FCPConfig:
     """Fictitious Co-Play's partner population (method fcp; Strouse et al. 2021)."""
 
@@ -315,6 +345,8 @@ class RunConfig:
     """hyperedge evaluation"""
     fcp: FCPConfig = field(default_factory=FCPConfig)
     """FCP's self-play partners (method fcp only)"""
+    pbt: PBTConfig = field(default_factory=PBTConfig)
+    """PBT's exploit and explore (method pbt only)"""
 
     def __post_init__(self) -> None:
         require(
@@ -329,6 +361,7 @@ class RunConfig:
         self.population.validate(self.l)
         self.grapher.validate()
         self.fcp.validate()
+        self.pbt.validate()
         if self.strategy.population == "fcp":
             members = 3 * self.fcp.agents
             require(
@@ -383,6 +416,7 @@ class RunConfig:
             ("population", PopulationConfig),
             ("grapher", GrapherConfig),
             ("fcp", FCPConfig),
+            ("pbt", PBTConfig),
         ):
             if name in kwargs:
                 kwargs[name] = sub(**_fields(sub, kwargs[name], f"{name}."))
@@ -392,6 +426,8 @@ class RunConfig:
             hidden = kwargs["oracle"].hidden
             if isinstance(hidden, list | tuple):
                 kwargs["oracle"] = dataclasses.replace(kwargs["oracle"], hidden=tuple(hidden))
+        if "pbt" in kwargs and isinstance(kwargs["pbt"].perturb, list | tuple):
+            kwargs["pbt"] = dataclasses.replace(kwargs["pbt"], perturb=tuple(kwargs["pbt"].perturb))
         return cls(**kwargs)
 
     @classmethod
@@ -409,9 +445,10 @@ class RunConfig:
             "seed": self.seed,
             "env": self.env.to_dict(),
         }
-        for name in ("oracle", "pretrain", "population", "grapher", "fcp"):
+        for name in ("oracle", "pretrain", "population", "grapher", "fcp", "pbt"):
             out[name] = dataclasses.asdict(getattr(self, name))
         out["oracle"]["hidden"] = list(self.oracle.hidden)
+        out["pbt"]["perturb"] = list(self.pbt.perturb)
         return out
 
     def to_yaml(self) -> str:

@@ -106,7 +106,11 @@ class Trainer:
         if c.strategy.population == "fcp":
             states_list, stats, built = self._fcp_population()
         else:
-            mep = Oracle(c, mep_members=c.population.initial_size)
+            # pbt: its agents start trained jointly with each other, without MEP's bonus
+            pre = c
+            if c.strategy.population == "pbt":
+                pre = dataclasses.replace(c, pretrain=dataclasses.replace(c.pretrain, alpha=0.0))
+            mep = Oracle(pre, mep_members=c.population.initial_size)
             try:
                 stats = mep.train(
                     c.pretrain.env_steps, desc="pre-train (MEP)", progress=self.progress
@@ -115,7 +119,9 @@ class Trainer:
             finally:
                 mep.stop()
             states_list = [states[m] for m in mep.members]
-            built = f"pre-trained {len(states_list)} members with MEP"
+            built = f"pre-trained {len(states_list)} members " + (
+                "jointly (PBT's start)" if pre is not c else "with MEP"
+            )
         exports = [c.export(s) for s in states_list]
         pretrain_s = time.perf_counter() - start
         ray.get(self.coord.init_population.remote(exports, states_list))
@@ -179,8 +185,11 @@ class Trainer:
         prev = ray.get(self.coord.view.remote())["last_metrics"]
         self.coord.set_phase.remote("oracle")
         start = time.perf_counter()
+        slot = None
+        if c.strategy.population == "pbt":
+            slot = self._seat_pbt_agent(g, oracle)
         if not c.strategy.self_play:
-            self._seat_partners(g, oracle)
+            self._seat_partners(g, oracle, exclude_slot=slot)
         stats = oracle.train(c.oracle.env_steps, desc=f"gen {g} oracle", progress=self.progress)
         learner_state = oracle.weights([LEARNER])[LEARNER]
         export = oracle.export_state(learner_state)
@@ -190,7 +199,7 @@ class Trainer:
             self.coord.set_phase.remote("self-play evaluation")
             judged, decision = self._self_play_eval(g, export), None
         else:
-            judged, decision = self._judge_in_population(g, export, learner_state)
+            judged, decision = self._judge_in_population(g, export, learner_state, slot)
         metrics = {
             "env_steps": int(prev.get("env_steps", 0)) + stats.env_steps,
             "oracle_s": round(oracle_s, 2),
@@ -211,6 +220,12 @@ class Trainer:
             verdict = (
                 "best so far" if best else f"best stays generation {self.run.best_generation()}"
             )
+        elif slot is not None:
+            verdict = f"agent {slot} is node {decision.candidate}" + (
+                f"; it exploits node {decision.copied_from} and explores lr and entropy"
+                if decision.copied_from is not None
+                else ""
+            )
         elif decision.accepted:
             verdict = f"accepted as node {decision.candidate} (rank {decision.rank}" + (
                 f", replaces {decision.replaced})" if decision.replaced is not None else ")"
@@ -227,28 +242,42 @@ class Trainer:
         )
         return row
 
-    def _seat_partners(self, g: int, oracle: Oracle) -> None:
-        """Load the members whose slots changed into the Oracle and push this generation's φ."""
+    def _seat_pbt_agent(self, g: int, oracle: Oracle) -> int:
+        """PBT: generation g trains agent (g − 1) mod K: its weights go into the learner,
+        which trains with that agent's lr and entropy coefficient and a fresh optimizer."""
+        slots = ray.get(self.coord.slots.remote())
+        slot = (g - 1) % len(slots)
+        node = next(v for v, s in slots.items() if s == slot)
+        state = ray.get(self.coord.member_states.remote([node]))[node]
+        oracle.set_trained_weights({LEARNER: state})
+        hyper = ray.get(self.coord.agent_hyper.remote(slot))
+        oracle.reset_learner(hyper["lr"], hyper["entropy_coef"])
+        return slot
+
+    def _seat_partners(self, g: int, oracle: Oracle, exclude_slot: int | None = None) -> None:
+        """Load the members whose slots changed into the Oracle and push this generation's φ
+        (without the member in `exclude_slot`: PBT's agent in training)."""
         slots = ray.get(self.coord.slots.remote())
         changed = {slot: node for node, slot in slots.items() if self.loaded.get(slot) != node}
         if changed:
             states = ray.get(self.coord.member_states.remote(list(changed.values())))
             oracle.set_partners({member_module(s): states[n] for s, n in changed.items()})
             self.loaded.update(changed)
-        phi = ray.get(self.coord.phi.remote())
+        phi = ray.get(self.coord.phi.remote(exclude_slot))
         oracle.set_phi({member_module(slots[n]): p for n, p in phi.items()}, salt=g)
 
-    def _judge_in_population(self, g: int, export, learner_state):
-        """HOLA-Drone: the Grapher weighs the learner's hyperedges; the coordinator decides."""
+    def _judge_in_population(self, g: int, export, learner_state, slot: int | None = None):
+        """The Grapher weighs the learner's hyperedges; the coordinator decides (pbt: on
+        the agent of `slot`)."""
         self.coord.set_phase.remote("grapher")
         candidate = ray.get(self.coord.propose.remote(export, learner_state))
         results, grapher = self._grapher(g)
         self.coord.set_phase.remote("coordinator")
         start = time.perf_counter()
         ray.get(self.coord.record.remote(results))
-        decision = ray.get(self.coord.decide.remote())
-        if not decision.accepted:
-            self.pool.remove(candidate)
+        decision = ray.get(self.coord.decide.remote(slot, g))
+        if not decision.accepted or decision.copied_from is not None:
+            self.pool.remove(candidate)  # gone, or its weights are another member's now
         if decision.replaced is not None:
             self.pool.remove(decision.replaced)
         judged = {
@@ -259,6 +288,7 @@ class Trainer:
             "rank": decision.rank,
             "eta": decision.eta,
             "replaced": -1 if decision.replaced is None else decision.replaced,
+            "copied_from": -1 if decision.copied_from is None else decision.copied_from,
             "coordinator_s": round(time.perf_counter() - start, 4),
         }
         return judged, decision

@@ -140,6 +140,31 @@ class OracleLearner(PPOTorchLearner):
                 optim.step()
         return fwd_out, loss_per_module, {}
 
+    def reset_module(self, module_id: str, lr: float, entropy_coeff: float) -> None:
+        """Train `module_id` from now on with these lr and entropy coefficient and a fresh
+        Adam state (PBT: another agent's weights were just loaded into it)."""
+        from ray.rllib.utils.schedules.scheduler import Scheduler
+
+        for _, optim in self.get_optimizers_for_module(module_id):
+            optim.state.clear()
+            self._optimizer_lr_schedules[optim] = Scheduler(
+                fixed_value_or_schedule=lr, framework=self.framework, device=self._device
+            )
+            self._set_optimizer_lr(optim, lr=lr)
+        self.entropy_coeff_schedulers_per_module[module_id] = Scheduler(
+            fixed_value_or_schedule=entropy_coeff, framework=self.framework, device=self._device
+        )
+
+    def hyperparameters(self, module_id: str) -> dict[str, float]:
+        """The lr and entropy coefficient `module_id` trains with now."""
+        (_, optim), *_ = self.get_optimizers_for_module(module_id)
+        return {
+            "lr": float(self._get_optimizer_lr(optim)),
+            "entropy_coef": float(
+                self.entropy_coeff_schedulers_per_module[module_id].get_current_value()
+            ),
+        }
+
     def _trains_on(self, episode) -> bool:
         """Whether a (multi-agent) episode chunk holds a step of a module being trained."""
         agents = getattr(episode, "agent_episodes", None)

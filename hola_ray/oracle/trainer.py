@@ -317,6 +317,22 @@ class Oracle:
         self.algo.learner_group.set_weights(dict(weights))
         _Pushed(self._pushed.phi, self._pushed.salt, dict(weights)).push(self.algo.env_runner_group)
 
+    def reset_learner(self, lr: float, entropy_coef: float) -> None:
+        """Train the learner on with these hyperparameters and a fresh optimizer state."""
+        self.algo.learner_group.foreach_learner(
+            lambda learner: learner.reset_module(LEARNER, lr, entropy_coef)
+        )
+
+    def learner_hyperparameters(self) -> dict[str, float]:
+        """The lr and entropy coefficient the learner trains with now."""
+        (out,) = [
+            r.get()
+            for r in self.algo.learner_group.foreach_learner(
+                lambda learner: learner.hyperparameters(LEARNER)
+            )
+        ]
+        return out
+
     def export_state(self, state: ModuleState) -> dict[str, Any]:
         """The plain-torch export of an RLlib module state of this Oracle's modules."""
         return self.config.export(state)

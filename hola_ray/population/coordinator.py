@@ -93,6 +93,11 @@ class Coordinator:
         nodes = self.population.add_initial(len(exports))
         for node, export, state in zip(nodes, exports, states, strict=True):
             self._pending_exports[node] = (dict(export), dict(state))
+        if self.config.strategy.population == "pbt":
+            o = self.config.oracle
+            for node in nodes:
+                slot = self.population.slots[node]
+                self.population.agent_hyper[slot] = {"lr": o.lr, "entropy_coef": o.entropy_coef}
         return nodes
 
     def propose(self, export: Mapping[str, Any], state: Mapping[str, Any]) -> int:
@@ -124,11 +129,26 @@ class Coordinator:
         self.population.record(results)
         self._edges = list(results)
 
-    def decide(self) -> Decision:
+    def decide(self, slot: int | None = None, generation: int = 0) -> Decision:
+        """The coordinator's verdict on the candidate (pbt: on the agent of `slot`)."""
+        if self.config.strategy.population == "pbt":
+            rng = np.random.default_rng([self.config.seed, generation, 2])
+            c = self.config.pbt
+            decision = self.population.pbt_step(slot, rng, c.quantile, c.perturb)
+            if decision.copied_from is not None:  # exploit: the slot takes those weights
+                source = decision.copied_from
+                export = self._weights([source], 0, self.run.load_member_export)[source]
+                state = self._weights([source], 1, self.run.load_member_state)[source]
+                self._pending_exports[decision.candidate] = (dict(export), dict(state))
+            return decision
         decision = self.population.decide()
         if not decision.accepted:
             self._pending_exports.pop(decision.candidate, None)
         return decision
+
+    def agent_hyper(self, slot: int) -> dict[str, float]:
+        """pbt: the PPO hyperparameters the agent of `slot` trains with."""
+        return dict(self.population.agent_hyper[slot])
 
     def commit(
         self,
@@ -200,8 +220,8 @@ class Coordinator:
     def slots(self) -> dict[int, int]:
         return dict(self.population.slots)
 
-    def phi(self) -> dict[int, float]:
-        return self.population.phi()
+    def phi(self, exclude_slot: int | None = None) -> dict[int, float]:
+        return self.population.phi(exclude_slot)
 
     def view(self) -> dict[str, Any]:
         """The live status: generation, phase, members with slot, η, φ, value; metrics."""

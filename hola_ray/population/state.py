@@ -50,6 +50,8 @@ class Decision:
     """the lowest-η member that made room, if the population was full"""
     slot: int | None
     """the candidate's population slot when accepted"""
+    copied_from: int | None = None
+    """pbt: the member whose weights the candidate took (exploit), if it did"""
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -73,6 +75,10 @@ class Population:
         self.joins, self.rank_beta = joins, rank_beta
         self.learner_returns: dict[int, float] = {}
         """member → mean team return of the latest candidate's hyperedges that hold it"""
+        self.agent_scores: dict[int, float] = {}
+        """pbt: slot → mean team return of its agent's hyperedges after its last training"""
+        self.agent_hyper: dict[int, dict[str, float]] = {}
+        """pbt: slot → its agent's PPO hyperparameters (lr, entropy_coef)"""
         self.hyfog = HyFoG(l=l, max_size=max_size + 1)
         self.slots: dict[int, int] = {}  # member node → population slot
         self.next_node = 0
@@ -158,6 +164,47 @@ class Population:
         self.candidate = None
         return Decision(node, accepted, rank, eta, replaced, slot)
 
+    def pbt_step(
+        self,
+        slot: int,
+        rng: np.random.Generator,
+        quantile: float = 0.25,
+        perturb: Sequence[float] = (0.8, 1.2),
+    ) -> Decision:
+        """PBT (Jaderberg 2017, as Carroll 2019 use it): the candidate, the agent of `slot`
+        after its training, replaces its parent there; its score is the mean return of its
+        hyperedges. Once every agent has a score, an agent in the bottom `quantile`
+        exploits (takes the weights and score of an agent drawn from the top `quantile`,
+        `copied_from`) and explores (its lr and entropy coefficient are that agent's times
+        a factor drawn from `perturb`); a copied candidate's hyperedges are dropped, as they
+        measured the weights it no longer has."""
+        node = self.candidate
+        if node is None:
+            raise ValueError("no candidate to decide on")
+        parent = next(v for v, s in self.slots.items() if s == slot)
+        edges = [w for nodes, w in self.hyfog.weights() if node in nodes]
+        rank = rank_of(self.hyfog, node)
+        eta = centrality(self.hyfog)[node]
+        self.slots.pop(parent)
+        self.hyfog.remove_node(parent)
+        self.slots[node] = slot
+        self.agent_scores[slot] = float(np.mean(edges)) if edges else float("-inf")
+        copied = None
+        if len(self.agent_scores) == len(self.slots):
+            k = max(1, int(len(self.slots) * quantile))
+            order = sorted(self.agent_scores, key=lambda s: self.agent_scores[s])
+            if slot in order[:k] and slot not in order[-k:]:
+                source = int(rng.choice(order[-k:]))
+                copied = next(v for v, s in self.slots.items() if s == source)
+                self.agent_scores[slot] = self.agent_scores[source]
+                self.agent_hyper[slot] = {
+                    h: v * float(rng.choice(perturb)) for h, v in self.agent_hyper[source].items()
+                }
+                self.hyfog.remove_node(node)
+                self.hyfog.add_node(node)
+        self.candidate = None
+        return Decision(node, True, rank, eta, parent, slot, copied)
+
     # ---- views --------------------------------------------------------------------------
     def member_graph(self) -> HyFoG:
         """The HyFoG restricted to members (the candidate and its hyperedges left out)."""
@@ -167,16 +214,20 @@ class Population:
         g.remove_node(self.candidate)
         return g
 
-    def phi(self) -> dict[int, float]:
-        """Partner distribution over members (see the module doc)."""
-        members = self.members
+    def phi(self, exclude_slot: int | None = None) -> dict[int, float]:
+        """Partner distribution over members (see the module doc); `exclude_slot`: every
+        member but that slot's (PBT: an agent trains with the others)."""
+        members = [v for v in self.members if self.slots[v] != exclude_slot]
         if self.phi_kind == "uniform":
             return {v: 1.0 / len(members) for v in members}
         if self.phi_kind == "rank":
             return rank_priorities(
                 {v: self.learner_returns.get(v) for v in members}, self.rank_beta
             )
-        return phi(self.member_graph(), self.phi_kind, self.phi_shift)
+        full = phi(self.member_graph(), self.phi_kind, self.phi_shift)
+        kept = {v: full[v] for v in members}
+        norm = sum(kept.values())
+        return {v: w / norm for v, w in kept.items()}
 
     def eta(self) -> dict[int, float]:
         return centrality(self.member_graph())
@@ -203,6 +254,8 @@ class Population:
             "joins": self.joins,
             "rank_beta": self.rank_beta,
             "learner_returns": {str(k): v for k, v in self.learner_returns.items()},
+            "agent_scores": {str(k): v for k, v in self.agent_scores.items()},
+            "agent_hyper": {str(k): v for k, v in self.agent_hyper.items()},
             "next_node": self.next_node,
             "slots": {str(k): v for k, v in self.slots.items()},
             "hyfog": self.hyfog.to_dict(),
@@ -220,6 +273,8 @@ class Population:
             rank_beta=data.get("rank_beta", 3.0),
         )
         p.learner_returns = {int(k): v for k, v in data.get("learner_returns", {}).items()}
+        p.agent_scores = {int(k): v for k, v in data.get("agent_scores", {}).items()}
+        p.agent_hyper = {int(k): dict(v) for k, v in data.get("agent_hyper", {}).items()}
         p.hyfog = HyFoG.from_dict(data["hyfog"])
         p.slots = {int(k): int(v) for k, v in data["slots"].items()}
         p.next_node = int(data["next_node"])

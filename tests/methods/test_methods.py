@@ -109,3 +109,40 @@ def test_every_method_is_configured_by_its_name_alone():
         assert config.strategy.self_play == (name == "sp")
     with pytest.raises(ConfigError, match=r"fcp.agents must be such that l = 3 <= 3 · fcp.agents"):
         RunConfig.from_dict({"method": "fcp", "fcp": {"agents": 4}})
+
+
+def test_pbt_trains_each_agent_with_the_others_drawn_uniformly():
+    p = Population(3, 4, 3, RunConfig(method="pbt").phi_kind, 0.1, joins=True)
+    p.add_initial(4)
+    for slot in range(4):
+        phi = p.phi(exclude_slot=slot)
+        others = [v for v in p.members if p.slots[v] != slot]
+        assert set(phi) == set(others) and all(w == pytest.approx(1 / 3) for w in phi.values())
+        freq = drawn(phi, episodes=20_000)
+        assert all(abs(f - 1 / 3) < 0.015 for f in freq.values())
+
+
+def test_pbt_replaces_the_parent_then_the_bottom_agent_exploits_the_top_and_explores():
+    p = Population(3, 3, 3, "uniform", 0.1, joins=True)
+    p.add_initial(3)
+    p.agent_hyper = {s: {"lr": 1e-3, "entropy_coef": 0.01} for s in range(3)}
+    p.record([edge((0, 1, 2), 0.0)])
+    rng = np.random.default_rng(0)
+    returns = {0: 5.0, 1: 9.0, 2: 1.0}  # the agents' returns after their training
+    for slot in range(3):
+        node = p.propose()
+        others = [v for v in p.members if p.slots[v] != slot]
+        p.record([edge((node, *others), returns[slot])])
+        d = p.pbt_step(slot, rng, quantile=0.34, perturb=(0.5, 2.0))
+        assert d.accepted and d.slot == slot and d.replaced == slot  # the parent's node
+        assert p.slots[node] == slot and d.replaced not in p.members
+        if slot < 2:  # not every agent has a score yet: no exploit
+            assert d.copied_from is None and p.agent_scores[slot] == returns[slot]
+    # after the third: agent 2 scores lowest and copies agent 1 (the top), perturbed
+    assert d.copied_from == next(v for v, s in p.slots.items() if s == 1)
+    assert p.agent_scores[2] == returns[1]
+    for h, base in (("lr", 1e-3), ("entropy_coef", 0.01)):
+        assert p.agent_hyper[2][h] in (pytest.approx(base * 0.5), pytest.approx(base * 2.0))
+    assert not list(p.hyfog.incident(d.candidate))  # its hyperedges measured other weights
+    again = Population.from_dict(p.to_dict())
+    assert again.agent_hyper == p.agent_hyper and again.agent_scores == p.agent_scores

@@ -35,7 +35,7 @@ def test_yaml_round_trip(name):
 @pytest.mark.parametrize(
     ("patch", "message"),
     [
-        ({"method": "hola_x"}, r"method must be one of fcp, hola, hola_r, mep, sp, uniform"),
+        ({"method": "hola_x"}, r"method must be one of fcp, hola, hola_r, mep, pbt, sp, uniform"),
         ({"population": {"max_size": 2}}, r"population.max_size \(the hypergraph size\)"),
         ({"oracle": {"env_steps": -5}}, r"oracle.env_steps must be an integer >= 1"),
         ({"pretrain": {"env_steps": 0}}, r"pretrain.env_steps must be an integer >= 1"),

@@ -337,3 +337,24 @@ def test_the_lean_gradient_step_equals_rllibs_and_frozen_partners_have_no_optimi
         np.testing.assert_allclose(lean_grads[k], rllib_grads[k], rtol=1e-6, atol=1e-9, err_msg=k)
     for k in lean:
         np.testing.assert_allclose(lean[k].numpy(), rllib[k].numpy(), rtol=0, atol=1e-7, err_msg=k)
+
+
+def test_a_reset_learner_trains_on_with_its_new_hyperparameters_and_a_fresh_optimizer(oracle):
+    """PBT's explore: the lr and entropy coefficient set for an agent are the ones its
+    training uses (RLlib's schedulers would otherwise put the config's back every update),
+    and the previous agent's Adam moments are gone."""
+    before = oracle.learner_hyperparameters()
+    assert before == pytest.approx({"lr": CONFIG.oracle.lr, "entropy_coef": 0.01})
+    learner = oracle.algo.learner_group._learner
+    (_, optim), *_ = learner.get_optimizers_for_module(LEARNER)
+    assert optim.state  # trained already: Adam has moments
+    try:
+        oracle.reset_learner(lr=1.234e-4, entropy_coef=0.0321)
+        assert not optim.state
+        oracle.train(400, progress=False)
+        assert oracle.learner_hyperparameters() == pytest.approx(
+            {"lr": 1.234e-4, "entropy_coef": 0.0321}
+        )
+        assert all(g["lr"] == pytest.approx(1.234e-4) for g in optim.param_groups)
+    finally:
+        oracle.reset_learner(before["lr"], before["entropy_coef"])
