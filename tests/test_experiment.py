@@ -19,6 +19,7 @@ import yaml
 
 from hola_ray.env.config import ConfigError
 from hola_ray.experiment import Experiment, aggregate, deep_merge, trial_state
+from hola_ray.methods.config import METHODS
 
 ROOT = Path(__file__).resolve().parent.parent
 SMOKE = ROOT / "configs" / "experiments" / "smoke.yaml"
@@ -148,3 +149,11 @@ def test_a_method_is_the_mean_over_its_seeds_with_the_standard_error_over_seeds(
     assert hot["success_se"] == pytest.approx(np.std([0.2, 0.4], ddof=1) / np.sqrt(2))
     lo, hi = hot["success_ci95"]
     assert 0.2 <= lo <= 0.3 <= hi <= 0.4
+
+
+@pytest.mark.parametrize("name", ["smoke", "laptop", "paper"])
+def test_the_shipped_experiments_load(name):
+    exp = Experiment.from_yaml(ROOT / "configs" / "experiments" / f"{name}.yaml")
+    if name != "smoke":  # every method, three seeds, the paper's 3 vs 2
+        assert set(exp.methods) == set(METHODS) and exp.seeds == (0, 1, 2)
+        assert all(exp.run_config(t).env.n_evaders == 2 for t in exp.trials())
