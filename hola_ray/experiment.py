@@ -252,7 +252,7 @@ class Runner:
         started: dict[str, float] = {}
         failed: dict[str, str] = {}
         waiting = list(todo)
-        last_view = 0.0
+        last_view, last_line = 0.0, ""
         while waiting or running:
             while waiting and len(running) < width:
                 t = waiting.pop(0)
@@ -272,17 +272,21 @@ class Runner:
                 except Exception as err:  # noqa: BLE001 - one failed trial must not stop the rest
                     failed[t] = f"{type(err).__name__}: {str(err).splitlines()[-1][:300]}"
                     self.say(f"{t}: FAILED: {failed[t]}")
-            if time.monotonic() - last_view >= max(self.poll_s, 10.0) or ready:
-                self.view(running.values(), waiting, failed)
-                last_view = time.monotonic()
+            line = self.view(running.values(), waiting, failed)
+            # say it when it changed, and at least once a minute
+            if line != last_line or time.monotonic() - last_view >= 60.0:
+                self.say(f"[{time.strftime('%H:%M:%S')}] {line}")
+                last_view, last_line = time.monotonic(), line
         if failed:
             raise RuntimeError(
                 f"{len(failed)} trial(s) failed: {', '.join(failed)}; fix and run "
                 f"`python -m hola_ray.experiment --resume {self.out}`"
             )
 
-    def view(self, running: Sequence[str], waiting: Sequence[str], failed: Mapping[str, str]):
-        """One progress line and DIR/progress.json: which trials run, wait or are done."""
+    def view(
+        self, running: Sequence[str], waiting: Sequence[str], failed: Mapping[str, str]
+    ) -> str:
+        """DIR/progress.json and a progress line: which trials run, wait or are done."""
         states = self.states()
         rows = {}
         for t, (s, last) in states.items():
@@ -303,10 +307,9 @@ class Runner:
             f"/{rows[t]['generations']}"
             for t in running
         )
-        self.say(
-            f"[{time.strftime('%H:%M:%S')}] trials: {counts['done']} done, "
-            f"{counts['running']} running ({busy or 'none'}), {len(waiting)} waiting"
-            + (f", {len(failed)} failed" if failed else "")
+        return (
+            f"trials: {counts['done']} done, {counts['running']} running ({busy or 'none'}), "
+            f"{len(waiting)} waiting" + (f", {len(failed)} failed" if failed else "")
         )
 
     # ---- phase 2: evaluation ----------------------------------------------------------------

@@ -20,7 +20,7 @@ from hola_ray.env.config import PursuitConfig
 from hola_ray.env.render import animate_trajectory, plot_trajectory
 from hola_ray.evaluation.trajectory import record
 from hola_ray.policies.base import Policy
-from hola_ray.policies.registry import load_policy, make_policy, policy_names
+from hola_ray.policies.registry import load_policy, make_policy, policy_names, trained_scenario
 
 
 def resolve(name: str, config: PursuitConfig) -> Policy:
@@ -53,13 +53,24 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--config", type=Path, help="YAML with the pursuit config (or an env: section)"
     )
-    parser.add_argument("--evaders", type=int, help="override the number of evaders")
+    parser.add_argument(
+        "--evaders",
+        type=int,
+        help="override the number of evaders (default: the first learned seat's, else 2)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="episode seed")
     parser.add_argument("--out", type=Path, default=Path("replays"), help="output folder")
     parser.add_argument("--stride", type=int, default=2, help="steps per GIF frame")
     args = parser.parse_args(argv)
 
     config = PursuitConfig.from_yaml(args.config) if args.config else PursuitConfig()
+    if args.evaders is None and args.config is None:
+        # a learned seat's export says which scenario it was trained in: play that one
+        trained = next(filter(None, (trained_scenario(n) for n in args.team)), None)
+        if trained is not None:
+            config = PursuitConfig.from_dict(
+                {**config.to_dict(), "n_evaders": trained["n_evaders"]}
+            )
     if args.evaders is not None:
         config = PursuitConfig.from_dict({**config.to_dict(), "n_evaders": args.evaders})
     names = args.team * config.n_pursuers if len(args.team) == 1 else args.team

@@ -181,7 +181,7 @@ def test_best_response_methods_keep_their_population_fixed(tmp_path, method):
 
     config = tmp_path / f"{method}.yaml"
     smoke = yaml.safe_load(SMOKE.read_text())
-    patch = {"method": method, "generations": 2}
+    patch = {"method": method, "generations": 1}
     if method == "fcp":
         patch |= {"fcp": {"agents": 2, "env_steps": 2000}, "population": {"max_size": 6}}
     config.write_text(yaml.safe_dump(smoke | patch))
@@ -189,21 +189,21 @@ def test_best_response_methods_keep_their_population_fixed(tmp_path, method):
     done = main_job("--config", str(config), "--out", str(out))
     assert done.returncode == 0, done.stderr[-3000:]
     r = RunDir(out)
-    assert r.completed() == [0, 1, 2]
+    assert r.completed() == [0, 1]
     rows = r.metrics_rows()
     size = 6 if method == "fcp" else smoke["population"]["initial_size"]
-    assert [row["population_size"] for row in rows] == [size] * 3
-    assert [row["accepted"] for row in rows[1:]] == [0, 0]
-    states = [json.loads((r.generation(g) / "state.json").read_text()) for g in (0, 1, 2)]
+    assert [row["population_size"] for row in rows] == [size] * 2
+    assert rows[1]["accepted"] == 0
+    states = [json.loads((r.generation(g) / "state.json").read_text()) for g in (0, 1)]
     assert all(sorted(s["population"]["slots"]) == [str(v) for v in range(size)] for s in states)
-    phi = json.loads((r.generation(2) / "phi.json").read_text())
+    phi = json.loads((r.generation(1) / "phi.json").read_text())
     if method == "fcp":
         assert "trained 2 self-play agents for FCP (6 checkpoints)" in done.stdout
         assert all(v == pytest.approx(1 / 6) for v in phi.values())
     else:
         from hola_ray.population.state import rank_priorities
 
-        returns = {int(k): v for k, v in states[2]["population"]["learner_returns"].items()}
+        returns = {int(k): v for k, v in states[1]["population"]["learner_returns"].items()}
         assert set(returns) == set(range(size))  # every member met the learner
         full = {v: returns.get(v) for v in range(size)}
         assert {int(k): v for k, v in phi.items()} == pytest.approx(rank_priorities(full, 3.0))

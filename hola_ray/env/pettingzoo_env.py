@@ -82,13 +82,29 @@ class PursuitEnv(ParallelEnv):
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         if not self.agents:
             raise RuntimeError("step() called on a finished episode; call reset() first")
+        unknown = [a for a in actions if a not in self._index]
+        if unknown:
+            raise ValueError(f"unknown agent(s) {unknown}; agents: {self.possible_agents}")
+        finished = [a for a in actions if a not in self.agents]
+        if finished:
+            raise ValueError(
+                f"action for {finished}, no longer in the episode (disabled); live: {self.agents}"
+            )
         missing = [agent for agent in self.agents if agent not in actions]
         if missing:
             raise ValueError(f"no action for live agent(s) {missing}")
         for agent in self.agents:
-            value = np.asarray(actions[agent], dtype=np.float64).reshape(-1)
+            raw = actions[agent]
+            if raw is None:
+                raise ValueError(f"action of {agent} is None")
+            try:
+                value = np.asarray(raw, dtype=np.float64).reshape(-1)
+            except (TypeError, ValueError):
+                raise ValueError(f"action of {agent} is not a number: {raw!r}") from None
             if value.size != 1:
                 raise ValueError(f"action of {agent} must hold one number, got {value}")
+            if not np.isfinite(value[0]):
+                raise ValueError(f"action of {agent} is {value[0]}: it must be a finite number")
             self._actions[0, self._index[agent]] = value[0]
         result = self.core.step(self._actions)
 

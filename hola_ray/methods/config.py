@@ -388,10 +388,12 @@ class RunConfig:
         }
 
     def export(self, state: Mapping[str, Any]) -> dict[str, Any]:
-        """The plain-torch export (`MLPPolicy`) of an RLlib module state of this config."""
-        return export_from_rllib(
+        """The plain-torch export (`MLPPolicy`) of an RLlib module state of this config,
+        with the scenario it was trained in."""
+        export = export_from_rllib(
             state, activation="tanh", dist=self.oracle.action_dist, features=self.model_features
         )
+        return export | {"scenario": self.env.to_dict()}
 
     @property
     def strategy(self) -> Method:

@@ -158,6 +158,15 @@ class MLPPolicy(Policy):
         features = export.get("features") or {}
         self.feature_indices = [int(i) for i in features.get("indices", ())]
         self.feature_gain = float(features.get("gain", 0.0))
+        self.scenario = export.get("scenario")
+        """the arena it was trained in (PursuitConfig.to_dict()), when the export says"""
+        if self.scenario is not None:
+            trained = (self.scenario["n_pursuers"], self.scenario["n_evaders"])
+            if trained != (config.n_pursuers, config.n_evaders):
+                raise ValueError(
+                    f"{name} was trained for {trained[0]} pursuers vs {trained[1]} evader(s); "
+                    f"this scenario has {config.n_pursuers} vs {config.n_evaders}"
+                )
         inputs = self.weights[0].shape[1] - len(self.feature_indices)
         if inputs != self.layout.dim:
             raise ValueError(
@@ -166,9 +175,25 @@ class MLPPolicy(Policy):
             )
 
     @classmethod
-    def load(cls, config: PursuitConfig, path: str | Path) -> MLPPolicy:
-        """Load an exported learner (`learner.pt`, a member checkpoint) from disk."""
+    def load(
+        cls, config_or_path: PursuitConfig | str | Path, path: str | Path | None = None
+    ) -> MLPPolicy:
+        """Load an exported learner (`learner.pt`, a member checkpoint) from disk:
+        `load(path)` plays it in the scenario it was trained in (the export carries it);
+        `load(config, path)` in `config`'s, which must have the same team sizes."""
+        if path is None:
+            config, path = None, config_or_path
+        else:
+            config = config_or_path
         export = torch.load(Path(path), map_location="cpu", weights_only=True)
+        if config is None:
+            scenario = export.get("scenario")
+            if scenario is None:
+                raise ValueError(
+                    f"{path} does not say which scenario it was trained in (exported before "
+                    "exports carried it): load it with MLPPolicy.load(config, path)"
+                )
+            config = PursuitConfig.from_dict(scenario)
         return cls(config, export, name=Path(path).stem)
 
     @torch.no_grad()

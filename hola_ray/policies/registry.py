@@ -37,6 +37,17 @@ def policy_file(path: str | Path) -> Path:
     return path / "learner.pt" if path.is_dir() else path
 
 
+def trained_scenario(path: str | Path) -> dict | None:
+    """The scenario a run directory's learner or an export file was trained in, when its
+    export says (`PursuitConfig.to_dict()`); None for a name or an older export."""
+    import torch
+
+    file = policy_file(Path(path))
+    if not file.is_file():
+        return None
+    return torch.load(file, map_location="cpu", weights_only=True).get("scenario")
+
+
 def load_policy(path: str | Path, config: PursuitConfig, name: str | None = None) -> Policy:
     """A learned policy from a run directory or an export file: an `MLPPolicy` export or a
     D3QN-G export, told apart by the export's format tag."""

@@ -125,3 +125,32 @@ def test_independent_resets_leave_other_episodes_alone():
         reference.step(np.full((1, 3), 0.6))
     np.testing.assert_array_equal(env.evader_pos[1], reference.evader_pos[0])
     np.testing.assert_array_equal(env.obs[1], reference.obs[0])
+
+
+@pytest.mark.parametrize(
+    ("action", "message"),
+    [
+        (float("nan"), "action of pursuer_1 is nan: it must be a finite number"),
+        (None, "action of pursuer_1 is None"),
+        ("fast", "action of pursuer_1 is not a number: 'fast'"),
+        ([0.1, 0.2], r"action of pursuer_1 must hold one number"),
+    ],
+)
+def test_a_bad_action_is_named_by_its_agent(action, message):
+    env = PursuitEnv(PursuitConfig())
+    env.reset(seed=0)
+    actions = {a: np.array([0.5], np.float32) for a in env.agents}
+    actions["pursuer_1"] = action
+    with pytest.raises(ValueError, match=message):
+        env.step(actions)
+
+
+def test_an_unknown_or_finished_agent_key_is_refused():
+    env = PursuitEnv(PursuitConfig())
+    env.reset(seed=0)
+    actions = {a: np.array([0.5], np.float32) for a in env.agents}
+    with pytest.raises(ValueError, match=r"unknown agent\(s\) \['pursuer_7'\]"):
+        env.step(actions | {"pursuer_7": np.array([0.5])})
+    env.agents.remove("pursuer_2")  # as if disabled
+    with pytest.raises(ValueError, match=r"action for \['pursuer_2'\], no longer in the episode"):
+        env.step(actions)

@@ -145,3 +145,15 @@ def test_replay_mixes_learned_and_hand_written_policies_with_a_legend(learner_fi
         resolve("nobody", PursuitConfig())
     replay(["--team", str(learner_file), "greedy", "apf-a-10", "--out", str(tmp_path / "r")])
     assert sorted(p.suffix for p in (tmp_path / "r").iterdir()) == [".gif", ".png"]
+
+
+def test_replay_plays_the_scenario_a_learner_was_trained_in(tmp_path, capsys):
+    from hola_ray.replay import main as replay
+
+    one = PursuitConfig(n_evaders=1)
+    path = tmp_path / "one.pt"
+    torch.save(random_export(one.obs_dim, hidden=(8,)) | {"scenario": one.to_dict()}, path)
+    replay(["--team", str(path), "vicsek", "greedy", "--out", str(tmp_path / "r")])
+    assert "'captures'" in capsys.readouterr().out
+    with pytest.raises(SystemExit):  # asked for another scenario: one clear error
+        replay(["--team", str(path), "--evaders", "2", "--out", str(tmp_path / "r")])

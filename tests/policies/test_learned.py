@@ -79,3 +79,30 @@ def test_spread_sees_an_exploded_gaussian_and_a_bounded_beta():
     narrow = MLPPolicy(CONFIG, constant_export((30.0, 30.0))).spread(OBS)
     assert narrow["std_median"] == pytest.approx(1 / math.sqrt(63), rel=1e-4)
     assert narrow["clipped"] == 0.0
+
+
+def test_an_export_carries_its_scenario_and_loads_without_one(tmp_path):
+    """A run's export says which arena it was trained in: `MLPPolicy.load(path)` rebuilds it,
+    and a given scenario with other team sizes is one clear error."""
+    from hola_ray.methods.config import RunConfig
+
+    run = RunConfig.from_dict({"env": {"n_evaders": 1, "horizon": 300}, "oracle": {"hidden": [8]}})
+    dim = ObsLayout.from_config(run.env).dim + len(run.model_features["indices"])
+    rng = np.random.default_rng(0)
+    state = {
+        "encoder.actor_encoder.net.mlp.0.weight": rng.normal(size=(8, dim)),
+        "encoder.actor_encoder.net.mlp.0.bias": np.zeros(8),
+        "pi.net.mlp.0.weight": rng.normal(size=(2, 8)),
+        "pi.net.mlp.0.bias": np.zeros(2),
+    }
+    path = tmp_path / "learner.pt"
+    torch.save(run.export(state), path)
+    policy = MLPPolicy.load(path)
+    assert policy.config == run.env and policy.config.horizon == 300
+    assert MLPPolicy.load(PursuitConfig(n_evaders=1), path).config.n_evaders == 1
+    with pytest.raises(ValueError, match=r"trained for 3 pursuers vs 1 evader\(s\); this "):
+        MLPPolicy.load(PursuitConfig(n_evaders=2), path)
+    old = tmp_path / "old.pt"
+    torch.save(constant_export((0.0, 0.0)), old)
+    with pytest.raises(ValueError, match=r"load it with MLPPolicy.load\(config, path\)"):
+        MLPPolicy.load(old)
