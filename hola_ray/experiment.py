@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from hola_ray.env.config import ConfigError
+from hola_ray.env.config import ConfigError, load_yaml
 from hola_ray.methods.config import METHODS, RunConfig
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -80,7 +80,7 @@ class Experiment:
         path = Path(path)
         if not path.is_file():
             raise ConfigError(f"experiment config {path} does not exist")
-        raw = yaml.safe_load(path.read_text()) or {}
+        raw = load_yaml(path) or {}
         allowed = {"base", "overrides", "methods", "seeds", "parallel", "evaluation"}
         if not isinstance(raw, Mapping) or set(raw) - allowed:
             unknown = sorted(set(raw) - allowed) if isinstance(raw, Mapping) else raw
@@ -138,7 +138,7 @@ class Experiment:
 
     def run_config(self, trial: str) -> RunConfig:
         method, seed = parse_trial(trial)
-        base = yaml.safe_load(self.base_path().read_text()) or {}
+        base = load_yaml(self.base_path()) or {}
         merged = deep_merge(deep_merge(base, self.overrides), self.methods[method])
         merged.update(method=method, seed=seed)
         return RunConfig.from_dict(merged)
@@ -507,12 +507,18 @@ def main(argv: list[str] | None = None) -> int:
     import ray
 
     from hola_ray.population.coordinator import NAMESPACE
+    from hola_ray.progress import RAY_RUNTIME_ENV, quiet_ray_noise
 
+    quiet_ray_noise()
     if os.environ.get("RAY_ADDRESS"):
-        ray.init(namespace=NAMESPACE)
+        ray.init(namespace=NAMESPACE, runtime_env=RAY_RUNTIME_ENV)
     else:
         ray.init(
-            address="local", namespace=NAMESPACE, num_cpus=args.num_cpus, include_dashboard=False
+            address="local",
+            namespace=NAMESPACE,
+            num_cpus=args.num_cpus,
+            include_dashboard=False,
+            runtime_env=RAY_RUNTIME_ENV,
         )
     trials = experiment.trials()
     print(

@@ -56,6 +56,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--resume", type=Path, metavar="RUN_DIR", help="continue a run after its last generation"
     )
+    parser.add_argument(
+        "--generations",
+        type=int,
+        metavar="N",
+        help="train until generation N (with --resume: extend a run, finished or not)",
+    )
     parser.add_argument("--num-cpus", type=int, help="CPUs of the local Ray (default: all)")
     parser.add_argument(
         "--no-dashboard", action="store_true", help="start the local Ray without its dashboard"
@@ -74,14 +80,39 @@ def resolve(args: argparse.Namespace) -> tuple[RunConfig, Path]:
                 "--resume RUN_DIR takes the run's own config and directory; drop --config and --out"
             )
         check_run_dir(args.resume, resume=True)
-        return RunConfig.from_yaml(args.resume / "config.yaml"), args.resume
+        config = RunConfig.from_yaml(args.resume / "config.yaml")
+        if args.generations is not None:
+            config = with_generations(config, args.generations)
+        return config, args.resume
     if args.config is None:
         config = RunConfig.from_dict(DEFAULT)
     else:
         config = RunConfig.from_yaml(args.config)
+    if args.generations is not None:
+        config = with_generations(config, args.generations)
     out = args.out or Path("runs") / time.strftime(f"{config.method}-%Y%m%d-%H%M%S")
     check_run_dir(out, resume=False)
     return config, out
+
+
+def with_generations(config: RunConfig, generations: int) -> RunConfig:
+    """The config with `--generations N` (validated as the config's own field)."""
+    return RunConfig.from_dict({**config.to_dict(), "generations": generations})
+
+
+def finished(out: Path, config: RunConfig) -> bool:
+    """A resumed run that already holds its last generation: say so instead of starting."""
+    from hola_ray.population.rundir import RunDir
+
+    last = RunDir(out).last_completed()
+    if last is None or last < config.generations:
+        return False
+    print(
+        f"{out} is finished: generation {last} of {config.generations} is done; train it "
+        f"further with --resume {out} --generations {last + 1} (or more)",
+        flush=True,
+    )
+    return True
 
 
 def init_ray(args: argparse.Namespace) -> None:
@@ -89,15 +120,18 @@ def init_ray(args: argparse.Namespace) -> None:
     import ray
 
     from hola_ray.population.coordinator import NAMESPACE
+    from hola_ray.progress import RAY_RUNTIME_ENV, quiet_ray_noise
 
+    quiet_ray_noise()
     if os.environ.get("RAY_ADDRESS"):
-        ctx = ray.init(namespace=NAMESPACE)
+        ctx = ray.init(namespace=NAMESPACE, runtime_env=RAY_RUNTIME_ENV)
     else:
         ctx = ray.init(
             address="local",
             namespace=NAMESPACE,
             num_cpus=args.num_cpus,
             include_dashboard=not args.no_dashboard,
+            runtime_env=RAY_RUNTIME_ENV,
         )
     url = getattr(ctx, "dashboard_url", None)
     if url:
@@ -111,17 +145,54 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, RuntimeError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    init_ray(args)
-    from hola_ray.methods.hola import Trainer
+    if args.resume is not None and finished(out, config):
+        return 0
+    from hola_ray.population.lock import RunDirLocked, RunLock
 
-    print(
-        f"training run in {out}: method {config.method}, {config.generations} generations, "
-        f"{config.oracle.env_steps:,} env steps per oracle",
-        flush=True,
-    )
-    Trainer(config, out, progress=not args.quiet).fit()
+    lock = RunLock(out)
+    try:
+        note = lock.acquire()  # before Ray starts and before anything is written
+    except RunDirLocked as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    if note:
+        print(note, flush=True)
+    try:
+        init_ray(args)
+        from hola_ray.methods.hola import Trainer
+
+        print(
+            f"training run in {out}: method {config.method}, {config.generations} "
+            f"generations, {config.oracle.env_steps:,} env steps per oracle",
+            flush=True,
+        )
+        Trainer(config, out, progress=not args.quiet, lock=lock).fit()
+    except KeyboardInterrupt:
+        return interrupted(out)
+    finally:
+        lock.release()
     print(f"done: learner {out / 'learner.pt'}; status: python -m hola_ray.status {out}")
     return 0
+
+
+def interrupted(out: Path) -> int:
+    """Ctrl-C: one line on what is saved and how to go on; Ray's workers stopped; 130."""
+    import signal
+
+    import ray
+
+    from hola_ray.population.rundir import RunDir
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the cleanup
+    done = RunDir(out).completed()
+    saved = f"generations {done[0]}–{done[-1]} are saved" if done else "no generation is saved"
+    print(
+        f"\ninterrupted: {saved} in {out}; continue with: python -m hola_ray.run --resume {out}",
+        file=sys.stderr,
+        flush=True,
+    )
+    ray.shutdown()
+    return 130
 
 
 if __name__ == "__main__":

@@ -17,7 +17,9 @@ import yaml
 from hola_ray import run, status
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
+from hola_ray.methods.config import RunConfig
 from hola_ray.policies.learned import MLPPolicy
+from hola_ray.population.lock import RunLock
 from hola_ray.population.rundir import RunDir
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -41,7 +43,14 @@ def test_smoke_run_writes_the_whole_run_directory(tmp_path):
             assert (r.generation(g) / name).is_file()
     assert (r.generation(1) / "learner.rllib.pt").is_file()
     assert len(list(r.members.glob("node_*.pt"))) >= 6  # export + RLlib state per member
-    assert list(r.tensorboard.glob("events.out.tfevents.*"))
+    # TensorBoard (installed with the project) reads the run's event files
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = EventAccumulator(str(r.tensorboard))
+    events.Reload()
+    tags = events.Tags()["scalars"]
+    assert "learner_success" in tags and "iteration/std_median" in tags
+    assert [e.step for e in events.Scalars("learner_success")] == [1]
     rows = r.metrics_rows()
     assert [row["generation"] for row in rows] == [0, 1]
     assert rows[1]["env_steps"] >= 2000 and 0.0 <= rows[1]["learner_success"] <= 1.0
@@ -52,6 +61,21 @@ def test_smoke_run_writes_the_whole_run_directory(tmp_path):
     assert result.episodes == 4
     # Member checkpoints load the same way.
     MLPPolicy.load(config, r.member_export(0))
+    # The final learner and the accepted population are kept apart and named.
+    import json
+
+    info = json.loads((out / "learner.json").read_text())
+    state = json.loads((r.generation(1) / "state.json").read_text())
+    assert info["generation"] == 1 and info["in_population"] == state["decision"]["accepted"]
+    members = json.loads((r.population / "members.json").read_text())
+    slots = {str(v): k for k, v in state["population"]["slots"].items()}
+    assert members["generation"] == 1
+    assert {s: m["node"] for s, m in members["members"].items()} == {
+        s: int(n) for s, n in slots.items()
+    }
+    for m in members["members"].values():
+        assert (r.population / m["file"]).read_bytes() == r.member_export(m["node"]).read_bytes()
+    assert MLPPolicy.load(r.learner).config.horizon == 200  # the export's own scenario
     # The status command reads it.
     assert status.main([str(out), "--plot"]) == 0
     assert (out / "progress.png").stat().st_size > 0
@@ -93,9 +117,42 @@ def _digest(run_dir: RunDir, g: int) -> str:
     return h.hexdigest()
 
 
+def test_ctrl_c_says_what_is_saved_and_exits_130(tmp_path):
+    out = tmp_path / "run"
+    config = yaml.safe_load(SMOKE.read_text()) | {"generations": 3}
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(config))
+    cmd = [sys.executable, "-m", "hola_ray.run", "--config", str(path), "--out", str(out)]
+    driver = subprocess.Popen(
+        [*cmd, "--no-dashboard", "--quiet"],
+        cwd=ROOT,
+        start_new_session=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    r = RunDir(out)
+    deadline = time.monotonic() + 240
+    while 0 not in r.completed():
+        assert driver.poll() is None, "the run ended before it could be interrupted"
+        assert time.monotonic() < deadline, "generation 0 never completed"
+        time.sleep(0.1)
+    os.killpg(driver.pid, signal.SIGINT)  # what Ctrl-C in a terminal does
+    _, err = driver.communicate(timeout=120)
+    assert driver.returncode == 130
+    saved = r.completed()
+    lines = [line for line in err.splitlines() if line.startswith("interrupted:")]
+    assert lines == [
+        f"interrupted: generations 0–{saved[-1]} are saved in {out}; continue with: "
+        f"python -m hola_ray.run --resume {out}"
+    ]
+    assert "Traceback" not in err
+    assert RunLock(out).acquire() is None  # released, and no stale holder left behind
+
+
 def test_sigkill_mid_generation_then_resume_loses_nothing(tmp_path):
     config = yaml.safe_load(SMOKE.read_text())
-    config["generations"] = 4
+    config["generations"] = 3
     config["oracle"]["env_steps"] = 6000
     path = tmp_path / "resume.yaml"
     path.write_text(yaml.safe_dump(config))
@@ -124,14 +181,23 @@ def test_sigkill_mid_generation_then_resume_loses_nothing(tmp_path):
     os.killpg(driver.pid, signal.SIGKILL)
     driver.wait()
     before = r.completed()
-    assert 1 in before and before[-1] < 4, before
+    assert 1 in before and before[-1] < 3, before
     digests = {g: _digest(r, g) for g in before}
 
     done = main_job("--resume", str(out))
     assert done.returncode == 0, done.stderr[-3000:]
     assert f"resuming after generation {before[-1]}" in done.stdout
-    assert r.completed() == [0, 1, 2, 3, 4]
+    assert r.completed() == [0, 1, 2, 3]
     assert {g: _digest(r, g) for g in before} == digests  # completed ones untouched
+
+    # a finished run says so; --generations extends it
+    again = main_job("--resume", str(out))
+    assert again.returncode == 0 and f"{out} is finished: generation 3 of 3" in again.stdout
+    assert r.completed() == [0, 1, 2, 3]
+    more = main_job("--resume", str(out), "--generations", "4")
+    assert more.returncode == 0, more.stderr[-3000:]
+    assert "resuming after generation 3" in more.stdout and r.completed() == [0, 1, 2, 3, 4]
+    assert RunConfig.from_yaml(r.config).generations == 4
     assert [row["generation"] for row in r.metrics_rows()] == [0, 1, 2, 3, 4]
     lines = r.metrics_csv.read_text().strip().splitlines()
     assert len(lines) == 1 + 5  # header + one row per generation

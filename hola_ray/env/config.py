@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
+import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,13 +25,79 @@ Region = tuple[float, float, float, float]
 
 
 class ConfigError(ValueError):
-    """A configuration value is missing, unknown or outside its allowed range."""
+    """A configuration value is missing, unknown or outside its allowed range; `field` is
+    its dotted name when one field is at fault (to find its line in a YAML file)."""
+
+    def __init__(self, message: str, field: str | None = None):
+        super().__init__(message)
+        self.field = field
+
+    def within(self, section: str) -> ConfigError:
+        """The same error for a config nested under `section` (e.g. env.reward.capture)."""
+        message = str(self)
+        if self.field and message.startswith(self.field):
+            message = f"{section}.{message}"
+        return ConfigError(message, f"{section}.{self.field}" if self.field else section)
 
 
 def require(ok: bool, name: str, allowed: str, value: Any) -> None:
     """Raise `ConfigError` naming the field and its allowed range unless `ok`."""
     if not ok:
-        raise ConfigError(f"{name} must be {allowed}, got {value!r}")
+        raise ConfigError(f"{name} must be {allowed}, got {value!r}", name.split(" (")[0])
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader that also reads 1e5 and 3e-4 as numbers (YAML 1.1, which
+    PyYAML follows, wants a dot: 1.0e5)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+def load_yaml(path: str | Path) -> Any:
+    """A config file's content; malformed YAML is one `ConfigError` with file and line."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"config file {path} does not exist")
+    text = path.read_text()
+    try:
+        return yaml.load(text, Loader=_Loader)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+        problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+        raise ConfigError(f"{where}: not valid YAML: {problem}") from None
+
+
+def line_of(path: str | Path, field: str | None) -> int | None:
+    """The line of a dotted field (`oracle.lr`) in a YAML file, or of its nearest section
+    present there; None when it is not in the file."""
+    if not field:
+        return None
+    try:
+        node = yaml.compose(Path(path).read_text(), Loader=_Loader)
+    except yaml.YAMLError:
+        return None
+    line = None
+    for key in field.split("."):
+        if not isinstance(node, yaml.MappingNode):
+            break
+        match = next((kv for kv in node.value if kv[0].value == key), None)
+        if match is None:
+            break
+        line = match[0].start_mark.line + 1
+        node = match[1]
+    return line
+
+
+def located(err: ConfigError, path: str | Path) -> ConfigError:
+    """`err` prefixed with the file and the line of its field (when the file has it)."""
+    line = line_of(path, err.field)
+    return ConfigError(f"{path}{f':{line}' if line else ''}: {err}", err.field)
 
 
 @dataclass(frozen=True)
@@ -331,10 +399,12 @@ class PursuitConfig:
     @classmethod
     def from_yaml(cls, path: str | Path) -> PursuitConfig:
         """Load from a YAML file holding the mapping (or an `env:` section of it)."""
-        data = yaml.safe_load(Path(path).read_text()) or {}
-        if "env" in data and isinstance(data["env"], Mapping):
-            data = data["env"]
-        return cls.from_dict(data)
+        data = load_yaml(path) or {}
+        nested = isinstance(data, Mapping) and isinstance(data.get("env"), Mapping)
+        try:
+            return cls.from_dict(data["env"] if nested else data)
+        except ConfigError as err:
+            raise located(err.within("env") if nested else err, path) from None
 
     def to_dict(self) -> dict[str, Any]:
         """A plain, YAML-safe mapping that `from_dict` reads back to an equal config."""
@@ -346,12 +416,20 @@ class PursuitConfig:
 
 
 def consume_fields(cls: type, data: Mapping[str, Any], prefix: str) -> dict[str, Any]:
-    """`data` as keyword arguments of the dataclass `cls`; unknown keys are an error."""
+    """`data` as keyword arguments of the dataclass `cls`; unknown keys are an error. A
+    whole float (1e5) given for an integer field becomes that integer."""
     names = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - names)
     if unknown:
         raise ConfigError(
             f"unknown key(s) {', '.join(prefix + k for k in unknown)}; "
-            f"allowed: {', '.join(sorted(names))}"
+            f"allowed: {', '.join(sorted(names))}",
+            prefix + unknown[0],
         )
-    return dict(data)
+    hints = typing.get_type_hints(cls)
+    out = dict(data)
+    for key, value in out.items():
+        whole = isinstance(value, float) and math.isfinite(value) and value.is_integer()
+        if hints.get(key) is int and whole:
+            out[key] = int(value)
+    return out

@@ -17,7 +17,14 @@ from typing import Any
 
 import yaml
 
-from hola_ray.env.config import ConfigError, PursuitConfig, consume_fields, require
+from hola_ray.env.config import (
+    ConfigError,
+    PursuitConfig,
+    consume_fields,
+    load_yaml,
+    located,
+    require,
+)
 from hola_ray.env.layout import ObsLayout
 from hola_ray.policies.learned import DISTRIBUTIONS, export_from_rllib
 
@@ -423,7 +430,10 @@ class RunConfig:
             if name in kwargs:
                 kwargs[name] = sub(**_fields(sub, kwargs[name], f"{name}."))
         if "env" in kwargs:
-            kwargs["env"] = PursuitConfig.from_dict(kwargs["env"] or {})
+            try:
+                kwargs["env"] = PursuitConfig.from_dict(kwargs["env"] or {})
+            except ConfigError as err:
+                raise err.within("env") from None
         if "oracle" in kwargs:
             hidden = kwargs["oracle"].hidden
             if isinstance(hidden, list | tuple):
@@ -434,10 +444,16 @@ class RunConfig:
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> RunConfig:
-        path = Path(path)
-        if not path.is_file():
-            raise ConfigError(f"config file {path} does not exist")
-        return cls.from_dict(yaml.safe_load(path.read_text()) or {})
+        """Load a run config file. Errors are one line naming the file, the line and the
+        field; an empty file is an error; a field the file leaves out takes its default
+        here (the paper's values, see each field)."""
+        data = load_yaml(path)
+        if data is None:
+            raise ConfigError(f"{path} is empty: a run config needs at least its method")
+        try:
+            return cls.from_dict(data)
+        except ConfigError as err:
+            raise located(err, path) from None
 
     def to_dict(self) -> dict[str, Any]:
         """A plain, YAML-safe mapping that `from_dict` reads back to an equal config."""

@@ -29,8 +29,9 @@ from hola_ray.evaluation.rollout import rollout
 from hola_ray.methods.config import RunConfig
 from hola_ray.oracle import LEARNER, Oracle, member_module
 from hola_ray.policies.learned import MLPPolicy
-from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name
+from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name, run_id
 from hola_ray.population.grapher import evaluate_edges
+from hola_ray.population.lock import RunLock
 from hola_ray.population.member import MemberPool
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import EdgeResult, edge_seed
@@ -55,16 +56,31 @@ class Trainer:
     config: RunConfig
     run_dir: Path
     progress: bool = True
+    lock: RunLock | None = None
+    """the run directory's lock, when the caller took it already (else `fit` takes it)"""
 
     def __post_init__(self) -> None:
         self.run = RunDir(self.run_dir)
-        self.name = self.run.root.resolve().name
+        self.name = run_id(str(self.run.root))
         self.pool = MemberPool(self.config.env.to_dict(), run_name=self.name)
         self.loaded: dict[int, int] = {}  # Oracle partner slot → node whose weights it holds
 
     # ---- entry --------------------------------------------------------------------------
     def fit(self) -> list[dict[str, Any]]:
-        """Train until `config.generations`; returns the metrics rows written this call."""
+        """Train until `config.generations`; returns the metrics rows written this call.
+        Raises `RunDirLocked` before writing anything when another run holds the folder."""
+        lock = self.lock or RunLock(self.run_dir)
+        owned = not lock.held
+        note = lock.acquire()
+        if note:
+            self._say(note)
+        try:
+            return self._fit()
+        finally:
+            if owned:
+                lock.release()
+
+    def _fit(self) -> list[dict[str, Any]]:
         self.run.create(self.config.to_yaml())
         here = ray.get_runtime_context().get_node_id()
         self.coord = Coordinator.options(
@@ -215,6 +231,15 @@ class Trainer:
             self.coord.commit.remote(g, metrics, learner_state, decision, stats.iteration_log)
         )
         self.run.save_learner(export)
+        self.run.save_learner_info(
+            {
+                "generation": g,
+                "method": c.method,
+                "in_population": None if decision is None else bool(decision.accepted),
+                "node": None if decision is None or not decision.accepted else decision.candidate,
+                "population": "population/members.json" if decision is not None else None,
+            }
+        )
         best = self.run.keep_best(g, row, export)
         if decision is None:
             verdict = (

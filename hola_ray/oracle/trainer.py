@@ -24,7 +24,6 @@ from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
 from ray.tune.registry import register_env
-from tqdm.auto import tqdm
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.pettingzoo_env import PursuitEnv
@@ -35,6 +34,7 @@ from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.mep import OracleLearner
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitCatalog, PursuitPPOModule
 from hola_ray.policies.learned import MLPPolicy
+from hola_ray.progress import progress as progress_bar
 
 ENV_NAME = "hola_ray_pursuit"
 ModuleState = Mapping[str, Any]
@@ -249,7 +249,7 @@ class Oracle:
         learn_before = self._update_seconds()
         result: dict[str, Any] = {}
         log: list[dict[str, float]] = []
-        with tqdm(total=env_steps, desc=desc, unit="step", disable=not progress) as bar:
+        with progress_bar(env_steps, desc, "step", enabled=progress) as bar:
             while done < env_steps:
                 start = time.perf_counter()
                 result = self.algo.train()

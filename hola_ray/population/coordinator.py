@@ -25,11 +25,19 @@ NAMESPACE = "hola_ray"
 """Ray namespace of every named actor of hola_ray."""
 
 
-def coordinator_name(run_dir: str) -> str:
-    """The coordinator's actor name for a run directory (its folder name)."""
+def run_id(run_dir: str) -> str:
+    """A run's name on the cluster: its folder name and a hash of its full path, so that two
+    runs in folders of one name under different parents never share actor names."""
+    import hashlib
     from pathlib import Path
 
-    return f"coordinator:{Path(run_dir).resolve().name}"
+    path = Path(run_dir).resolve()
+    return f"{path.name}-{hashlib.blake2b(str(path).encode(), digest_size=4).hexdigest()}"
+
+
+def coordinator_name(run_dir: str) -> str:
+    """The coordinator's actor name for a run directory: `coordinator:<run id>`."""
+    return f"coordinator:{run_id(run_dir)}"
 
 
 def phi_entropy(phi: Mapping[Any, float]) -> float:
@@ -70,7 +78,7 @@ class Coordinator:
         self._edges: list[EdgeResult] = []
         self._pending_exports: dict[int, tuple[dict, dict]] = {}
         tags = ("run",)
-        self._tags = {"run": self.run.root.name}
+        self._tags = {"run": run_id(str(self.run.root))}
         self._gauges = {
             "generation": Gauge("hola_generation", "last completed generation", tags),
             "learner_success": Gauge("hola_learner_success", "learner success rate", tags),
@@ -188,6 +196,14 @@ class Coordinator:
         files["metrics.json"] = row
         files["iterations.json"] = [dict(r) for r in iterations]
         self.run.write_generation(generation, files, learner_state)
+        if self.population.members:
+            self.run.write_population(
+                {
+                    v: {"slot": self.population.slots[v], "eta": eta.get(v), "phi": phi.get(v)}
+                    for v in self.population.members
+                },
+                generation,
+            )
         self.run.rewrite_metrics_csv()
         self.generation = generation
         self.last_metrics = row

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 
 import ray
 from ray.exceptions import RayActorError
-from tqdm.auto import tqdm
 
 from hola_ray.population.state import EdgeResult
+from hola_ray.progress import progress as progress_bar
 
 MAX_ATTEMPTS = 4
 """Failures per hyperedge, beyond those explained by a member actor newly found dead,
@@ -78,7 +78,7 @@ def evaluate_edges(
         ref = actors[node].evaluate.remote(edges[k], exports_ref, episodes, seed_of(edges[k]))
         pending[ref] = (k, node)
 
-    with tqdm(total=len(edges) * episodes, desc=desc, unit="ep", disable=not progress) as bar:
+    with progress_bar(len(edges) * episodes, desc, "ep", enabled=progress) as bar:
         while queue or pending:
             while queue and len(pending) < workers:
                 submit(queue.pop(0))

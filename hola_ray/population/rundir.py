@@ -13,9 +13,14 @@
       metrics.csv                 one row per completed generation
       iterations.csv              one row per PPO iteration of every completed generation
       tb/                         TensorBoard events of the same metrics
-      learner.pt                  the latest learner as a plain-torch export
+      learner.pt, learner.json    the final learner: the Oracle's learner after the last
+                                  generation, plain torch, whether or not the coordinator
+                                  accepted it (learner.json: its generation, whether it
+                                  joined the population and as which node)
       best.pt, best.json          the learner of the generation judged best (success, then
                                   lower collision) and what it was judged on
+      population/                 the accepted population after the last generation:
+                                  slot_K.pt per member, members.json (slot → node, η, φ)
 
 A generation folder is written under a temporary name and renamed into place, so it is
 either complete or absent: the last complete folder is where `--resume` starts.
@@ -50,6 +55,7 @@ class RunDir:
         self.learner = self.root / "learner.pt"
         self.best = self.root / "best.pt"
         self.best_info = self.root / "best.json"
+        self.population = self.root / "population"
 
     def create(self, config_yaml: str) -> None:
         self.members.mkdir(parents=True, exist_ok=True)
@@ -72,6 +78,31 @@ class RunDir:
 
     def load_member_export(self, node: int) -> dict[str, Any]:
         return torch.load(self.member_export(node), map_location="cpu", weights_only=True)
+
+    def write_population(self, members: Mapping[int, Mapping[str, Any]], generation: int) -> None:
+        """`population/`: the accepted population after `generation`, apart from the final
+        learner: `slot_K.pt` per member (a copy of its node's export) and `members.json`
+        (slot → node, η, φ). Rewritten whole at every generation."""
+        tmp = self.root / "population.tmp"
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        table = {}
+        for node, info in sorted(members.items(), key=lambda kv: kv[1]["slot"]):
+            name = f"slot_{info['slot']}.pt"
+            shutil.copyfile(self.member_export(node), tmp / name)
+            table[str(info["slot"])] = {"node": node, "file": name, **dict(info)}
+        (tmp / "members.json").write_text(
+            json.dumps({"generation": generation, "members": table}, indent=1)
+        )
+        old = self.root / "population.old"
+        shutil.rmtree(old, ignore_errors=True)
+        if self.population.exists():
+            os.replace(self.population, old)
+        os.replace(tmp, self.population)
+        shutil.rmtree(old, ignore_errors=True)
+
+    def save_learner_info(self, info: Mapping[str, Any]) -> None:
+        _atomic_write_text(self.root / "learner.json", json.dumps(dict(info), indent=1))
 
     def save_learner(self, export: Mapping[str, Any]) -> None:
         """The latest learner as a plain-torch export (`MLPPolicy.load(config, path)`)."""

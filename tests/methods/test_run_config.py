@@ -49,3 +49,39 @@ def test_yaml_round_trip(name):
 def test_bad_values_name_the_field(patch, message):
     with pytest.raises(ConfigError, match=message):
         RunConfig.from_dict(patch)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("method: hola\noracle:\n  lr: [1, 2\n", r"bad.yaml:4:1: not valid YAML: expected ','"),
+        (
+            "method: hola\nenv:\n  n_pursuers: 3\n  reward:\n    collision: -10\n",
+            r"bad.yaml:5: env.reward.collision must be a finite number >= 0, got -10",
+        ),
+        ("method: hola\nenv:\n  n_pursuers: 0\n", r"bad.yaml:3: env.n_pursuers must be"),
+        (
+            "method: hola\ngrapher:\n  episodes: 3\n",
+            r"bad.yaml:3: unknown key\(s\) grapher.episodes",
+        ),
+        ("method: hola\n\n\npopulation:\n  max_size: 2\n", r"bad.yaml:5: population.max_size"),
+        ("", r"bad.yaml is empty: a run config needs at least its method"),
+    ],
+)
+def test_a_bad_file_is_one_line_naming_file_line_and_field(tmp_path, text, message):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message) as err:
+        RunConfig.from_yaml(path)
+    assert len(str(err.value).splitlines()) == 1
+
+
+def test_numbers_in_scientific_notation_are_numbers(tmp_path):
+    path = tmp_path / "sci.yaml"
+    path.write_text("method: hola\noracle:\n  env_steps: 1e5\n  lr: 3e-4\n  train_batch: 2.048e3\n")
+    c = RunConfig.from_yaml(path)
+    assert c.oracle.env_steps == 100_000 and isinstance(c.oracle.env_steps, int)
+    assert c.oracle.lr == 3e-4 and c.oracle.train_batch == 2048
+    path.write_text("method: hola\noracle:\n  env_steps: 2.5e0\n")  # not a whole number
+    with pytest.raises(ConfigError, match="oracle.env_steps must be an integer >= 1, got 2.5"):
+        RunConfig.from_yaml(path)

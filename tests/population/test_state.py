@@ -111,3 +111,11 @@ def test_generation_folders_are_all_or_nothing(tmp_path):
     rows = list(csv.DictReader(run.metrics_csv.open()))
     assert [r["generation"] for r in rows] == ["0", "1"]
     assert rows[0]["b"] == "" and rows[1]["b"] == "3"
+
+
+def test_runs_in_folders_of_one_name_get_different_actor_names(tmp_path):
+    from hola_ray.population.coordinator import coordinator_name, run_id
+
+    a, b = tmp_path / "x" / "paper", tmp_path / "y" / "paper"
+    assert coordinator_name(str(a)) != coordinator_name(str(b))
+    assert run_id(str(a)).startswith("paper-") and run_id(str(a)) == run_id(str(a / ".." / "paper"))
