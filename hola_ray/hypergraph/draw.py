@@ -2,10 +2,13 @@
 
     python -m hola_ray.hypergraph.draw RUN_DIR_OR_JSON [--out FILE.png] [--kind myerson]
 
-Left: the HyFoG, each hyperedge a translucent polygon shaded by its weight. Right: the
-preference hypergraph, an arrow from each node to the other members of its best hyperedge.
-Node size grows with centrality η, node colour is φ. A run directory is searched for its
-newest `*hyfog*.json`.
+Left: the HyFoG's weights as a node × node heat map: cell (i, j) is the mean weight (team
+return) of the hyperedges that hold both i and j, the diagonal the mean of i's hyperedges;
+blank where no hyperedge holds the pair. Right: the preference hypergraph, an arrow from
+each node to the other members of its best hyperedge; node size grows with centrality η,
+node colour is φ. A run directory is searched for its newest `*hyfog*.json`, and the
+picture goes to the run directory itself (`hyfog_gen_NNNN.png`), never into a completed
+generation folder.
 """
 
 from __future__ import annotations
@@ -19,7 +22,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.patches import Polygon  # noqa: E402
 
 from hola_ray.hypergraph.hyfog import HyFoG  # noqa: E402
 from hola_ray.hypergraph.phi import phi  # noqa: E402
@@ -38,6 +40,31 @@ def find_hyfog(path: Path) -> Path:
     raise FileNotFoundError(f"{path} does not exist")
 
 
+def pair_weights(g: HyFoG) -> tuple[list, np.ndarray]:
+    """(nodes, [n, n] matrix): the mean weight of the hyperedges holding both nodes (the
+    diagonal: holding the node), NaN where none does."""
+    nodes = list(g.nodes)
+    index = {v: k for k, v in enumerate(nodes)}
+    total = np.zeros((len(nodes), len(nodes)))
+    count = np.zeros((len(nodes), len(nodes)))
+    for members, weight in g.weights():
+        ks = [index[v] for v in members]
+        for i in ks:
+            for j in ks:
+                total[i, j] += weight
+                count[i, j] += 1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return nodes, np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
+def default_out(path: Path) -> Path:
+    """Where the picture of a HyFoG JSON goes: beside it, except inside a generation folder
+    (`gen_NNNN/`), which a run completed and never changes: then the run directory."""
+    if path.parent.name.startswith("gen_") and path.parent.parent.name == "generations":
+        return path.parent.parent.parent / f"hyfog_{path.parent.name}.png"
+    return path.with_suffix(".png")
+
+
 def draw(g: HyFoG, out: Path, kind: str = "myerson", title: str = "") -> None:
     """Write the two-panel picture of `g` to `out`."""
     nodes = g.nodes
@@ -46,19 +73,31 @@ def draw(g: HyFoG, out: Path, kind: str = "myerson", title: str = "") -> None:
     xy = {v: np.array([math.cos(a), math.sin(a)]) for v, a in angle.items()}
     eta = centrality(g)
     probability = phi(g, kind)
-    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 5.5), dpi=100)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 5.5), dpi=100)
     edges = g.edges
-    weights = np.array([e.weight for e in edges]) if edges else np.zeros(0)
-    lo, hi = (weights.min(), weights.max()) if edges else (0.0, 1.0)
-    shade = plt.get_cmap("Reds")
-    for e in edges:
-        level = 0.5 if hi == lo else (e.weight - lo) / (hi - lo)
-        pts = np.array([xy[v] for v in e.nodes])
-        centre = pts.mean(axis=0)
-        order = np.argsort(np.arctan2(*(pts - centre).T[::-1]))
-        left.add_patch(
-            Polygon(pts[order], closed=True, fc=shade(0.2 + 0.8 * level), ec="none", alpha=0.25)
-        )
+    order, matrix = pair_weights(g)
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.92")
+    image = left.imshow(np.ma.masked_invalid(matrix), cmap=cmap)
+    left.set_xticks(range(n), [str(v) for v in order], fontsize=8)
+    left.set_yticks(range(n), [str(v) for v in order], fontsize=8)
+    if n <= 12:
+        finite = matrix[np.isfinite(matrix)]
+        middle = (finite.min() + finite.max()) / 2 if finite.size else 0.0
+        for i in range(n):
+            for j in range(n):
+                if np.isfinite(matrix[i, j]):
+                    left.text(
+                        j,
+                        i,
+                        f"{matrix[i, j]:.1f}",
+                        ha="center",
+                        va="center",
+                        fontsize=7,
+                        color="white" if matrix[i, j] < middle else "black",
+                    )
+    fig.colorbar(image, ax=left, fraction=0.046, label="mean hyperedge weight (team return)")
+    colours = plt.get_cmap("plasma")
+    top = max(probability.values(), default=1.0)
     best = preference_hypergraph(g)
     for source, e in best.items():
         for target in e.nodes:
@@ -76,32 +115,30 @@ def draw(g: HyFoG, out: Path, kind: str = "myerson", title: str = "") -> None:
                         "shrinkB": 12,
                     },
                 )
-    colours = plt.get_cmap("viridis")
-    top = max(probability.values(), default=1.0)
-    for ax, heading in (
-        (left, f"HyFoG: {n} nodes, {len(edges)} hyperedges (l={g.l})"),
-        (right, "preference hypergraph (size: η, colour: φ)"),
-    ):
-        for v in nodes:
-            ax.scatter(
-                *xy[v],
-                s=200 + 1200 * eta.get(v, 0.0),
-                color=colours(probability[v] / top),
-                edgecolors="black",
-                zorder=3,
-            )
-            ax.annotate(
-                f"{v}\nη={eta.get(v, 0):.2f} φ={probability[v]:.2f}",
-                xy[v] * 1.25,
-                ha="center",
-                va="center",
-                fontsize=7,
-            )
-        ax.set_title(heading, fontsize=10)
-        ax.set_xlim(-1.6, 1.6)
-        ax.set_ylim(-1.6, 1.6)
-        ax.set_aspect("equal")
-        ax.axis("off")
+    left.set_title(
+        f"HyFoG: {n} nodes, {len(edges)} hyperedges (l={g.l}); mean weight per pair",
+        fontsize=10,
+    )
+    for v in nodes:
+        right.scatter(
+            *xy[v],
+            s=200 + 1200 * eta.get(v, 0.0),
+            color=colours(probability[v] / top),
+            edgecolors="black",
+            zorder=3,
+        )
+        right.annotate(
+            f"{v}\nη={eta.get(v, 0):.2f} φ={probability[v]:.2f}",
+            xy[v] * 1.25,
+            ha="center",
+            va="center",
+            fontsize=7,
+        )
+    right.set_title("preference hypergraph (size: η, colour: φ)", fontsize=10)
+    right.set_xlim(-1.6, 1.6)
+    right.set_ylim(-1.6, 1.6)
+    right.set_aspect("equal")
+    right.axis("off")
     mappable = plt.cm.ScalarMappable(cmap=colours, norm=plt.Normalize(0, top))
     fig.colorbar(mappable, ax=right, fraction=0.04, label=f"φ ({kind})")
     if title:
@@ -113,12 +150,14 @@ def draw(g: HyFoG, out: Path, kind: str = "myerson", title: str = "") -> None:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m hola_ray.hypergraph.draw", description=__doc__)
     parser.add_argument("source", type=Path, help="a HyFoG JSON file or a run directory")
-    parser.add_argument("--out", type=Path, help="PNG to write (default: beside the JSON)")
+    parser.add_argument(
+        "--out", type=Path, help="PNG to write (default: the run directory, or beside the JSON)"
+    )
     parser.add_argument("--kind", default="myerson", choices=["myerson", "mean_reward"])
     args = parser.parse_args(argv)
     path = find_hyfog(args.source)
     g = HyFoG.from_json(path.read_text())
-    out = args.out or path.with_suffix(".png")
+    out = args.out or default_out(path)
     draw(g, out, args.kind, title=str(path))
     print(f"wrote {out}")
 
