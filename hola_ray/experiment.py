@@ -535,4 +535,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    from hola_ray.progress import fixed_hash_seed
+
+    fixed_hash_seed("hola_ray.experiment", sys.argv[1:])
     sys.exit(main())

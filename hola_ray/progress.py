@@ -66,8 +66,25 @@ NOISY_LOGGERS = (
 )
 """Loggers whose warnings say nothing a user of this project can act on."""
 
-RAY_RUNTIME_ENV = {"worker_process_setup_hook": "hola_ray.progress.quiet_ray_noise"}
-"""`ray.init(runtime_env=...)`: every Ray worker of a run silences the same loggers."""
+RAY_RUNTIME_ENV = {
+    "worker_process_setup_hook": "hola_ray.progress.quiet_ray_noise",
+    "env_vars": {"PYTHONHASHSEED": "0"},
+}
+"""`ray.init(runtime_env=...)`: every Ray worker of a run silences the same loggers and
+iterates sets of strings in one order (see `fixed_hash_seed`)."""
+
+
+def fixed_hash_seed(module: str, argv: list[str]) -> None:
+    """Re-run this command with PYTHONHASHSEED=0 unless it is set. RLlib iterates sets of
+    module ids in places (the learner's per-module work among them), and a set of strings
+    iterates in an order that Python's hash seed picks per process: two runs of one config
+    and seed then differ. With a fixed seed they give the same metrics on one machine."""
+    import os
+
+    if "PYTHONHASHSEED" in os.environ:
+        return
+    env = {**os.environ, "PYTHONHASHSEED": "0"}
+    os.execve(sys.executable, [sys.executable, "-m", module, *argv], env)
 
 
 def quiet_ray_noise() -> None:

@@ -196,4 +196,7 @@ def interrupted(out: Path) -> int:
 
 
 if __name__ == "__main__":
+    from hola_ray.progress import fixed_hash_seed
+
+    fixed_hash_seed("hola_ray.run", sys.argv[1:])
     sys.exit(main())

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -41,3 +44,27 @@ def ray_session():
     )
     yield ray
     ray.shutdown()
+
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="session")
+def smoke_run(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
+    """`python -m hola_ray.run` on configs/smoke.yaml, once per session: its run directory
+    and the finished process. Two tests read it: the run directory's contents, and the
+    experiment's hola-s0 trial (same config and seed, run as a Ray task) matching it."""
+    out = tmp_path_factory.mktemp("smoke") / "smoke"
+    cmd = [
+        sys.executable,
+        "-m",
+        "hola_ray.run",
+        "--config",
+        str(ROOT / "configs" / "smoke.yaml"),
+        "--out",
+        str(out),
+        "--no-dashboard",
+        "--quiet",
+    ]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    return out, done

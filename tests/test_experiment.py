@@ -20,6 +20,7 @@ import yaml
 from hola_ray.env.config import ConfigError
 from hola_ray.experiment import Experiment, aggregate, deep_merge, trial_state
 from hola_ray.methods.config import METHODS
+from hola_ray.population.rundir import metrics_differences
 
 ROOT = Path(__file__).resolve().parent.parent
 SMOKE = ROOT / "configs" / "experiments" / "smoke.yaml"
@@ -38,7 +39,7 @@ def digest(folder: Path) -> str:
     return h.hexdigest()
 
 
-def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(tmp_path):
+def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(tmp_path, smoke_run):
     config = yaml.safe_load(SMOKE.read_text())
     config["base"] = str(ROOT / "configs" / "smoke.yaml")
     config["parallel"] = 1  # one trial at a time, so that one is done while the other runs
@@ -64,6 +65,10 @@ def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(tm
     assert done.returncode == 0, done.stderr[-3000:]
     assert "hola-s0: done (generation 1), not rerun" in done.stdout
     assert digest(first) == kept  # the finished trial was not touched
+    # reproducible: the trial (a Ray task) and `python -m hola_ray.run` of the same config
+    # and seed give the same metrics.csv, wall times aside
+    assert smoke_run[1].returncode == 0, smoke_run[1].stderr[-3000:]
+    assert metrics_differences(smoke_run[0], first) == {}
     assert trial_state(out / "trials" / "sp-s0", 1)[0] == "done"
 
     results = json.loads((out / "results.json").read_text())

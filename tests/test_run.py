@@ -31,9 +31,8 @@ def main_job(*args: str, **kwargs) -> subprocess.CompletedProcess:
     return subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT, **kwargs)
 
 
-def test_smoke_run_writes_the_whole_run_directory(tmp_path):
-    out = tmp_path / "smoke"
-    done = main_job("--config", str(SMOKE), "--out", str(out))
+def test_smoke_run_writes_the_whole_run_directory(smoke_run):
+    out, done = smoke_run
     assert done.returncode == 0, done.stderr[-3000:]
     assert "gen 1: learner success" in done.stdout
     r = RunDir(out)
@@ -76,6 +75,20 @@ def test_smoke_run_writes_the_whole_run_directory(tmp_path):
     for m in members["members"].values():
         assert (r.population / m["file"]).read_bytes() == r.member_export(m["node"]).read_bytes()
     assert MLPPolicy.load(r.learner).config.horizon == 200  # the export's own scenario
+    # what the reproducibility check compares sees a changed figure (and not a wall time)
+    import shutil
+
+    from hola_ray.population.rundir import metrics_differences
+
+    twin = Path(str(out) + "-twin")
+    shutil.copytree(out, twin)
+    row = json.loads((twin / "generations" / "gen_0001" / "metrics.json").read_text())
+    row["oracle_s"] += 1.0
+    (twin / "generations" / "gen_0001" / "metrics.json").write_text(json.dumps(row))
+    assert metrics_differences(out, twin) == {}
+    row["learner_return"] += 0.5
+    (twin / "generations" / "gen_0001" / "metrics.json").write_text(json.dumps(row))
+    assert set(metrics_differences(out, twin)[1]) == {"learner_return"}
     # The status command reads it.
     assert status.main([str(out), "--plot"]) == 0
     assert (out / "progress.png").stat().st_size > 0

@@ -184,7 +184,10 @@ class Oracle:
                 num_cpus_per_env_runner=1,
             )
             .multi_agent(
-                policies=set(self.modules),
+                # a list, not a set: RLlib builds the modules in this order, and a set of
+                # strings iterates in an order that changes with PYTHONHASHSEED (so did
+                # every initial weight, from one process to the next)
+                policies=list(self.modules),
                 policy_mapping_fn=self.mapping,
                 policies_to_train=list(trainable),
             )

@@ -243,3 +243,26 @@ def _fsync_dir(path: Path) -> None:
         os.fsync(fd)
     finally:
         os.close(fd)
+
+
+def metrics_differences(a: str | Path, b: str | Path) -> dict[int, dict[str, tuple]]:
+    """Where two runs' metrics.csv differ, wall times aside (fields ending in `_s` or
+    `_per_s`): {generation: {field: (a's, b's)}}; empty when they agree. The same config
+    and seed on one machine give none (`python -m hola_ray.run` fixes the hash seed)."""
+    rows = [RunDir(x).metrics_rows() for x in (a, b)]
+    if len(rows[0]) != len(rows[1]):
+        return {-1: {"generations": (len(rows[0]), len(rows[1]))}}
+    out: dict[int, dict[str, tuple]] = {}
+    for x, y in zip(*rows, strict=True):
+        diff = {
+            k: (x[k], y.get(k))
+            for k in x
+            if not k.endswith(("_s", "_per_s")) and not _same(x[k], y.get(k))
+        }
+        if diff:
+            out[int(x["generation"])] = diff
+    return out
+
+
+def _same(x: Any, y: Any) -> bool:
+    return x == y or (isinstance(x, float) and isinstance(y, float) and x != x and y != y)
