@@ -222,6 +222,34 @@ def iqm(values: np.ndarray) -> float:
 
 
 # ---- the command ----------------------------------------------------------------------------
+def evaluate_learner(
+    learner: Any,
+    members: list,
+    reference: np.ndarray,
+    config: PursuitConfig,
+    episodes: int,
+    seeds: Sequence[int],
+    cell_episodes: int,
+) -> dict[str, Any]:
+    """One learner's figures against one pool (`members`), whose reference returns
+    (`cell_returns(members, members, …)`) are given: computed once for every learner."""
+    per_seed = seed_means(learner, members, config, episodes, seeds)
+    mine = cell_returns([learner], members, config, cell_episodes, seeds)[..., 0]
+    scores, dropped = br_prox(reference, mine)
+    row: dict[str, Any] = {}
+    for m in METRICS:
+        v = per_seed[m]
+        row[m] = float(v.mean())
+        row[f"{m}_se"] = float(v.std(ddof=1) / np.sqrt(v.size)) if v.size > 1 else 0.0
+        row[f"{m}_ci95"] = list(bootstrap_ci(v))
+        row[f"{m}_per_seed"] = [round(float(x), 4) for x in v]
+    row["score_iqm"] = iqm(scores)
+    row["score_cells"] = int(scores.size)
+    row["score_cells_without_reference"] = dropped
+    row["episodes"] = episodes * len(seeds)
+    return row
+
+
 def evaluate(
     learners: Mapping[str, Any],
     pool_members: Mapping[str, Mapping[str, Any]],
@@ -241,20 +269,9 @@ def evaluate(
         say(f"[{pool}] reference returns of {len(members)} members: {took:.0f} s")
         for name, learner in learners.items():
             start = time.perf_counter()
-            per_seed = seed_means(learner, members, config, episodes, seeds)
-            mine = cell_returns([learner], members, config, cell_episodes, seeds)[..., 0]
-            scores, dropped = br_prox(reference, mine)
-            row: dict[str, Any] = {}
-            for m in METRICS:
-                v = per_seed[m]
-                row[m] = float(v.mean())
-                row[f"{m}_se"] = float(v.std(ddof=1) / np.sqrt(v.size)) if v.size > 1 else 0.0
-                row[f"{m}_ci95"] = list(bootstrap_ci(v))
-                row[f"{m}_per_seed"] = [round(float(x), 4) for x in v]
-            row["score_iqm"] = iqm(scores)
-            row["score_cells"] = int(scores.size)
-            row["score_cells_without_reference"] = dropped
-            row["episodes"] = episodes * len(seeds)
+            row = evaluate_learner(
+                learner, members, reference, config, episodes, seeds, cell_episodes
+            )
             out[name][pool] = row
             say(
                 f"[{pool}] {name}: success {row['success']:.1%} ± {row['success_se']:.1%}, "

@@ -182,23 +182,37 @@ def _run_trial(config: dict[str, Any], run_dir: str) -> str:
     return run_dir
 
 
-def _evaluate_trial(learner: str, settings: dict[str, Any], n_evaders: int) -> dict[str, Any]:
+def _reference(pool: str, settings: dict[str, Any], n_evaders: int) -> np.ndarray:
+    """A pool's reference returns for the BR-Prox score: computed once, for every trial."""
     from hola_ray.env.config import PursuitConfig
-    from hola_ray.evaluate import evaluate, load_learner, pools
+    from hola_ray.evaluate import cell_returns, pools
+
+    config = PursuitConfig(n_evaders=n_evaders)
+    members = list(pools([pool], [], config)[pool].values())
+    return cell_returns(members, members, config, settings["cell_episodes"], settings["seeds"])
+
+
+def _evaluate_trial(
+    learner: str, settings: dict[str, Any], n_evaders: int, references: dict[str, np.ndarray]
+) -> dict[str, Any]:
+    from hola_ray.env.config import PursuitConfig
+    from hola_ray.evaluate import evaluate_learner, load_learner, pools
 
     config = PursuitConfig(n_evaders=n_evaders)
     members = pools(list(settings["pools"]), [], config)
-    name, policy = load_learner(Path(learner), config)
-    results = evaluate(
-        {name: policy},
-        members,
-        config,
-        settings["episodes"],
-        list(settings["seeds"]),
-        settings["cell_episodes"],
-        say=lambda *_: None,
-    )
-    return results[name]
+    _, policy = load_learner(Path(learner), config)
+    return {
+        pool: evaluate_learner(
+            policy,
+            list(members[pool].values()),
+            references[pool],
+            config,
+            settings["episodes"],
+            list(settings["seeds"]),
+            settings["cell_episodes"],
+        )
+        for pool in settings["pools"]
+    }
 
 
 class Runner:
@@ -328,8 +342,7 @@ class Runner:
             "pools": list(self.exp.evaluation.pools),
         }
         results: dict[str, dict[str, Any]] = {}
-        pending: dict[Any, str] = {}
-        remote = ray.remote(num_cpus=1, max_retries=1)(_evaluate_trial)
+        todo: list[str] = []
         for t in self.exp.trials():
             cached = self.eval_dir / f"{t}.json"
             if cached.is_file():
@@ -337,11 +350,27 @@ class Runner:
                 if saved.get("settings") == settings:
                     results[t] = saved["pools"]
                     continue
-            evaders = self.exp.run_config(t).env.n_evaders
-            ref = remote.remote(str(self.learner_file(t).resolve()), settings, evaders)
-            pending[ref] = t
-        if pending:
-            self.say(f"evaluating {len(pending)} learner(s) against {', '.join(settings['pools'])}")
+            todo.append(t)
+        if not todo:
+            return {t: results[t] for t in self.exp.trials()}
+        scenarios = {self.exp.run_config(t).env.n_evaders for t in todo}
+        if len(scenarios) > 1:
+            raise RuntimeError(f"the trials play different numbers of evaders {scenarios}")
+        evaders = scenarios.pop()
+        self.say(
+            f"evaluating {len(todo)} learner(s) against {', '.join(settings['pools'])}: "
+            "the pools' reference returns first"
+        )
+        start = time.monotonic()
+        reference = ray.remote(num_cpus=1, max_retries=1)(_reference)
+        refs = {p: reference.remote(p, settings, evaders) for p in settings["pools"]}
+        references = ray.put({p: ray.get(r) for p, r in refs.items()})
+        self.say(f"reference returns: {time.monotonic() - start:.0f} s")
+        remote = ray.remote(num_cpus=1, max_retries=1)(_evaluate_trial)
+        pending: dict[Any, str] = {
+            remote.remote(str(self.learner_file(t).resolve()), settings, evaders, references): t
+            for t in todo
+        }
         while pending:
             ready, _ = ray.wait(list(pending), num_returns=1)
             t = pending.pop(ready[0])

@@ -17,7 +17,6 @@ import yaml
 from hola_ray import run, status
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
-from hola_ray.methods.config import RunConfig
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.population.lock import RunLock
 from hola_ray.population.rundir import RunDir
@@ -130,29 +129,51 @@ def _digest(run_dir: RunDir, g: int) -> str:
     return h.hexdigest()
 
 
-def test_ctrl_c_says_what_is_saved_and_exits_130(tmp_path):
-    out = tmp_path / "run"
-    config = yaml.safe_load(SMOKE.read_text()) | {"generations": 3}
-    path = tmp_path / "c.yaml"
+def test_sigkill_then_ctrl_c_then_resume_loses_nothing(tmp_path):
+    """SIGKILL after generation 1 (nothing gets to clean up), a resume interrupted by
+    Ctrl-C after generation 2 (one line, exit 130), a last resume: every completed
+    generation kept untouched, the run finished; then it says so, and --generations N
+    extends it."""
+    config = yaml.safe_load(SMOKE.read_text())
+    config["generations"] = 3
+    config["oracle"]["env_steps"] = 4000
+    path = tmp_path / "resume.yaml"
     path.write_text(yaml.safe_dump(config))
-    cmd = [sys.executable, "-m", "hola_ray.run", "--config", str(path), "--out", str(out)]
-    driver = subprocess.Popen(
-        [*cmd, "--no-dashboard", "--quiet"],
-        cwd=ROOT,
-        start_new_session=True,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    out = tmp_path / "run"
     r = RunDir(out)
-    deadline = time.monotonic() + 240
-    while 0 not in r.completed():
-        assert driver.poll() is None, "the run ended before it could be interrupted"
-        assert time.monotonic() < deadline, "generation 0 never completed"
-        time.sleep(0.1)
+
+    def start(*args: str) -> subprocess.Popen:
+        cmd = [sys.executable, "-m", "hola_ray.run", *args, "--no-dashboard", "--quiet"]
+        return subprocess.Popen(
+            cmd,
+            cwd=ROOT,
+            start_new_session=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+
+    def wait_for(driver: subprocess.Popen, g: int) -> None:
+        deadline = time.monotonic() + 240
+        while g not in r.completed():
+            assert driver.poll() is None, "the run ended before it could be stopped"
+            assert time.monotonic() < deadline, f"generation {g} never completed"
+            time.sleep(0.1)
+
+    driver = start("--config", str(path), "--out", str(out))
+    wait_for(driver, 1)
+    os.killpg(driver.pid, signal.SIGKILL)  # the driver and the local Ray it started
+    driver.communicate()
+    before = r.completed()
+    assert 1 in before and before[-1] < 3, before
+    digests = {g: _digest(r, g) for g in before}
+
+    driver = start("--resume", str(out))
+    wait_for(driver, before[-1] + 1)
     os.killpg(driver.pid, signal.SIGINT)  # what Ctrl-C in a terminal does
-    _, err = driver.communicate(timeout=120)
-    assert driver.returncode == 130
+    stdout, err = driver.communicate(timeout=120)
+    assert driver.returncode == 130, err[-3000:]
+    assert f"resuming after generation {before[-1]}" in stdout
     saved = r.completed()
     lines = [line for line in err.splitlines() if line.startswith("interrupted:")]
     assert lines == [
@@ -160,62 +181,32 @@ def test_ctrl_c_says_what_is_saved_and_exits_130(tmp_path):
         f"python -m hola_ray.run --resume {out}"
     ]
     assert "Traceback" not in err
-    assert RunLock(out).acquire() is None  # released, and no stale holder left behind
+    digests |= {g: _digest(r, g) for g in saved if g not in digests}
 
-
-def test_sigkill_mid_generation_then_resume_loses_nothing(tmp_path):
-    config = yaml.safe_load(SMOKE.read_text())
-    config["generations"] = 3
-    config["oracle"]["env_steps"] = 6000
-    path = tmp_path / "resume.yaml"
-    path.write_text(yaml.safe_dump(config))
-    out = tmp_path / "run"
-    cmd = [
-        sys.executable,
-        "-m",
-        "hola_ray.run",
-        "--config",
-        str(path),
-        "--out",
-        str(out),
-        "--no-dashboard",
-        "--quiet",
-    ]
-    driver = subprocess.Popen(
-        cmd, cwd=ROOT, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
-    )
-    r = RunDir(out)
-    deadline = time.monotonic() + 240
-    while 1 not in r.completed():
-        assert driver.poll() is None, "the run ended before it could be killed"
-        assert time.monotonic() < deadline, "generation 1 never completed"
-        time.sleep(0.1)
-    # SIGKILL the driver and the local Ray it started: nothing gets to clean up.
-    os.killpg(driver.pid, signal.SIGKILL)
-    driver.wait()
-    before = r.completed()
-    assert 1 in before and before[-1] < 3, before
-    digests = {g: _digest(r, g) for g in before}
-
-    done = main_job("--resume", str(out))
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert f"resuming after generation {before[-1]}" in done.stdout
+    if saved[-1] < 3:
+        done = main_job("--resume", str(out))
+        assert done.returncode == 0, done.stderr[-3000:]
+        assert f"resuming after generation {saved[-1]}" in done.stdout
     assert r.completed() == [0, 1, 2, 3]
-    assert {g: _digest(r, g) for g in before} == digests  # completed ones untouched
+    assert {g: _digest(r, g) for g in digests} == digests  # completed ones untouched
+    assert [row["generation"] for row in r.metrics_rows()] == [0, 1, 2, 3]
+    lines = r.metrics_csv.read_text().strip().splitlines()
+    assert len(lines) == 1 + 4  # header + one row per generation
+    steps = [row["env_steps"] for row in r.metrics_rows()]
+    assert steps == sorted(steps) and steps[-1] >= 3 * 4000
+    lock = RunLock(out)
+    assert lock.acquire() is None  # released, no stale holder left behind
+    lock.release()
 
-    # a finished run says so; --generations extends it
+    # a finished run says so (before Ray starts); --generations N extends it
     again = main_job("--resume", str(out))
     assert again.returncode == 0 and f"{out} is finished: generation 3 of 3" in again.stdout
-    assert r.completed() == [0, 1, 2, 3]
-    more = main_job("--resume", str(out), "--generations", "4")
-    assert more.returncode == 0, more.stderr[-3000:]
-    assert "resuming after generation 3" in more.stdout and r.completed() == [0, 1, 2, 3, 4]
-    assert RunConfig.from_yaml(r.config).generations == 4
-    assert [row["generation"] for row in r.metrics_rows()] == [0, 1, 2, 3, 4]
-    lines = r.metrics_csv.read_text().strip().splitlines()
-    assert len(lines) == 1 + 5  # header + one row per generation
-    steps = [row["env_steps"] for row in r.metrics_rows()]
-    assert steps == sorted(steps) and steps[-1] >= 4 * 6000
+    assert "Ray" not in again.stdout
+    config_more, out_more = run.resolve(
+        run.parse_args(["--resume", str(out), "--generations", "5"])
+    )
+    assert out_more == out and config_more.generations == 5
+    assert not run.finished(out, config_more)  # so main trains generations 4 and 5
 
 
 @pytest.mark.parametrize(
@@ -262,7 +253,7 @@ def test_best_response_methods_keep_their_population_fixed(tmp_path, method):
     smoke = yaml.safe_load(SMOKE.read_text())
     patch = {"method": method, "generations": 1}
     if method == "fcp":
-        patch |= {"fcp": {"agents": 2, "env_steps": 2000}, "population": {"max_size": 6}}
+        patch |= {"fcp": {"agents": 1, "env_steps": 2000}, "population": {"max_size": 4}}
     config.write_text(yaml.safe_dump(smoke | patch))
     out = tmp_path / method
     done = main_job("--config", str(config), "--out", str(out))
@@ -270,15 +261,15 @@ def test_best_response_methods_keep_their_population_fixed(tmp_path, method):
     r = RunDir(out)
     assert r.completed() == [0, 1]
     rows = r.metrics_rows()
-    size = 6 if method == "fcp" else smoke["population"]["initial_size"]
+    size = 3 if method == "fcp" else smoke["population"]["initial_size"]
     assert [row["population_size"] for row in rows] == [size] * 2
     assert rows[1]["accepted"] == 0
     states = [json.loads((r.generation(g) / "state.json").read_text()) for g in (0, 1)]
     assert all(sorted(s["population"]["slots"]) == [str(v) for v in range(size)] for s in states)
     phi = json.loads((r.generation(1) / "phi.json").read_text())
     if method == "fcp":
-        assert "trained 2 self-play agents for FCP (6 checkpoints)" in done.stdout
-        assert all(v == pytest.approx(1 / 6) for v in phi.values())
+        assert "trained 1 self-play agent(s) for FCP (3 checkpoints)" in done.stdout
+        assert all(v == pytest.approx(1 / 3) for v in phi.values())
     else:
         from hola_ray.population.state import rank_priorities
 

@@ -192,7 +192,7 @@ class Trainer:
         return (
             states,
             total,
-            f"trained {c.fcp.agents} self-play agents for FCP ({len(states)} checkpoints)",
+            f"trained {c.fcp.agents} self-play agent(s) for FCP ({len(states)} checkpoints)",
         )
 
     # ---- generations 1.. ----------------------------------------------------------------
