@@ -225,13 +225,15 @@ class Runner:
         self.poll_s = poll_s
         self.trials_dir = self.out / "trials"
         self.eval_dir = self.out / "evaluation"
+        # every trial's run config, read once (the progress view polls every few seconds)
+        self.configs = {t: experiment.run_config(t) for t in experiment.trials()}
 
     def trial_dir(self, trial: str) -> Path:
         return self.trials_dir / trial
 
     def states(self) -> dict[str, tuple[str, int | None]]:
         return {
-            t: trial_state(self.trial_dir(t), self.exp.run_config(t).generations)
+            t: trial_state(self.trial_dir(t), self.configs[t].generations)
             for t in self.exp.trials()
         }
 
@@ -243,7 +245,7 @@ class Runner:
         if self.exp.parallel > 0:
             return self.exp.parallel
         cpus = int(ray.cluster_resources().get("CPU", 1))
-        need = max(1 + self.exp.run_config(t).oracle.env_runners for t in self.exp.trials())
+        need = max(1 + self.configs[t].oracle.env_runners for t in self.exp.trials())
         return max(1, cpus // need)
 
     # ---- phase 1: training ------------------------------------------------------------------
@@ -270,7 +272,7 @@ class Runner:
         while waiting or running:
             while waiting and len(running) < width:
                 t = waiting.pop(0)
-                config = self.exp.run_config(t)
+                config = self.configs[t]
                 ref = remote.options(scheduling_strategy="SPREAD").remote(
                     config.to_dict(), str(self.trial_dir(t).resolve())
                 )
@@ -304,7 +306,7 @@ class Runner:
         states = self.states()
         rows = {}
         for t, (s, last) in states.items():
-            total = self.exp.run_config(t).generations
+            total = self.configs[t].generations
             if t in failed:
                 status = "failed"
             elif s == "done":
@@ -353,7 +355,7 @@ class Runner:
             todo.append(t)
         if not todo:
             return {t: results[t] for t in self.exp.trials()}
-        scenarios = {self.exp.run_config(t).env.n_evaders for t in todo}
+        scenarios = {self.configs[t].env.n_evaders for t in todo}
         if len(scenarios) > 1:
             raise RuntimeError(f"the trials play different numbers of evaders {scenarios}")
         evaders = scenarios.pop()
