@@ -37,7 +37,7 @@ import json
 import os
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -237,18 +237,64 @@ class Runner:
             for t in self.exp.trials()
         }
 
+    def bundles(self, trial: str) -> list[dict[str, float]]:
+        """A trial's placement group: its own process (the PPO learner, with its GPUs) and
+        one CPU per env runner."""
+        oracle = self.configs[trial].oracle
+        head = {"CPU": 1.0} | ({"GPU": oracle.gpus_per_learner} if oracle.gpus_per_learner else {})
+        return [head] + [{"CPU": 1.0} for _ in range(oracle.env_runners)]
+
     def parallel(self) -> int:
-        """Trials at once: the config's, else the cluster's CPUs over a trial's CPUs (its
-        learner process and its env runners)."""
+        """Trials at once: the config's, else as many as the cluster's CPUs (and GPUs, for
+        trials that want them) hold."""
         import ray
 
         if self.exp.parallel > 0:
             return self.exp.parallel
-        cpus = int(ray.cluster_resources().get("CPU", 1))
-        need = max(1 + self.configs[t].oracle.env_runners for t in self.exp.trials())
-        return max(1, cpus // need)
+        have = ray.cluster_resources()
+        width = len(self.exp.trials())
+        for t in self.exp.trials():
+            for resource in ("CPU", "GPU"):
+                need = sum(b.get(resource, 0.0) for b in self.bundles(t))
+                if need > 0:
+                    width = min(width, int(have.get(resource, 0.0) // need))
+        return max(1, width)
+
+    def place(self, trial: str) -> tuple[Any, dict[str, Any]]:
+        """Reserve a trial's placement group. The trial's task takes the first bundle and
+        the env runners and members it starts are captured in the group."""
+        from ray.util.placement_group import placement_group
+        from ray.util.scheduling_strategies import PlacementGroupSchedulingStrategy
+
+        bundles = self.bundles(trial)
+        group = placement_group(bundles, strategy="PACK")
+        strategy = PlacementGroupSchedulingStrategy(
+            group, placement_group_bundle_index=0, placement_group_capture_child_tasks=True
+        )
+        head = bundles[0]
+        options = {"num_cpus": head["CPU"], "scheduling_strategy": strategy}
+        if head.get("GPU"):
+            options["num_gpus"] = head["GPU"]
+        return group, options
+
+    def _check_fits(self, trials: Sequence[str]) -> None:
+        """Say so at once when a trial's group cannot fit the cluster as it is now (it then
+        waits for nodes to join, as an autoscaling cluster's would)."""
+        import ray
+
+        have = ray.cluster_resources()
+        for t in trials:
+            for resource in ("CPU", "GPU"):
+                need = sum(b.get(resource, 0.0) for b in self.bundles(t))
+                if need > have.get(resource, 0.0):
+                    self.say(
+                        f"warning: {t} needs {need:g} {resource}(s) and the cluster has "
+                        f"{have.get(resource, 0.0):g}: it waits until nodes join"
+                    )
 
     # ---- phase 1: training ------------------------------------------------------------------
+    trial_fn = staticmethod(_run_trial)
+
     def train(self) -> None:
         import ray
 
@@ -261,38 +307,51 @@ class Runner:
                 self.say(f"{t}: resumes after generation {last}")
         if not todo:
             return
-        remote = ray.remote(num_cpus=0, max_retries=0)(_run_trial)
+        remote = ray.remote(max_retries=0)(self.trial_fn)
         width = self.parallel()
         self.say(f"training {len(todo)} trial(s), {width} at a time")
+        self._check_fits(todo)
         running: dict[Any, str] = {}
+        groups: dict[str, Any] = {}
+        placing: dict[str, Any] = {}  # trial → its group's ready(), until the group is placed
         started: dict[str, float] = {}
         failed: dict[str, str] = {}
         waiting = list(todo)
         last_view, last_line = 0.0, ""
-        while waiting or running:
-            while waiting and len(running) < width:
-                t = waiting.pop(0)
-                config = self.configs[t]
-                ref = remote.options(scheduling_strategy="SPREAD").remote(
-                    config.to_dict(), str(self.trial_dir(t).resolve())
-                )
-                running[ref] = t
-                started[t] = time.monotonic()
-            ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_s)
-            for ref in ready:
-                t = running.pop(ref)
-                try:
-                    ray.get(ref)
-                    took = time.monotonic() - started[t]
-                    self.say(f"{t}: done in {took / 60:.1f} min")
-                except Exception as err:  # noqa: BLE001 - one failed trial must not stop the rest
-                    failed[t] = f"{type(err).__name__}: {str(err).splitlines()[-1][:300]}"
-                    self.say(f"{t}: FAILED: {failed[t]}")
-            line = self.view(running.values(), waiting, failed)
-            # say it when it changed, and at least once a minute
-            if line != last_line or time.monotonic() - last_view >= 60.0:
-                self.say(f"[{time.strftime('%H:%M:%S')}] {line}")
-                last_view, last_line = time.monotonic(), line
+        try:
+            while waiting or running:
+                while waiting and len(running) < width:
+                    t = waiting.pop(0)
+                    groups[t], options = self.place(t)
+                    placing[t] = groups[t].ready()
+                    ref = remote.options(**options).remote(
+                        self.configs[t].to_dict(), str(self.trial_dir(t).resolve())
+                    )
+                    running[ref] = t
+                    started[t] = time.monotonic()
+                ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_s)
+                for ref in ready:
+                    t = running.pop(ref)
+                    try:
+                        ray.get(ref)
+                        took = time.monotonic() - started[t]
+                        self.say(f"{t}: done in {took / 60:.1f} min")
+                    except Exception as err:  # noqa: BLE001 - one failed trial must not stop the rest
+                        failed[t] = f"{type(err).__name__}: {str(err).splitlines()[-1][:300]}"
+                        self.say(f"{t}: FAILED: {failed[t]}")
+                    ray.util.remove_placement_group(groups.pop(t))
+                    placing.pop(t, None)
+                for t, ref in list(placing.items()):
+                    if ray.wait([ref], timeout=0)[0]:
+                        del placing[t]
+                line = self.view(running.values(), waiting, failed, placing)
+                # say it when it changed, and at least once a minute
+                if line != last_line or time.monotonic() - last_view >= 60.0:
+                    self.say(f"[{time.strftime('%H:%M:%S')}] {line}")
+                    last_view, last_line = time.monotonic(), line
+        finally:
+            for group in groups.values():
+                ray.util.remove_placement_group(group)
         if failed:
             raise RuntimeError(
                 f"{len(failed)} trial(s) failed: {', '.join(failed)}; fix and run "
@@ -300,9 +359,14 @@ class Runner:
             )
 
     def view(
-        self, running: Sequence[str], waiting: Sequence[str], failed: Mapping[str, str]
+        self,
+        running: Sequence[str],
+        waiting: Sequence[str],
+        failed: Mapping[str, str],
+        placing: Collection[str] = (),
     ) -> str:
-        """DIR/progress.json and a progress line: which trials run, wait or are done."""
+        """DIR/progress.json and a progress line: which trials run, wait for their CPUs
+        (`placing`: started, their placement group not yet placed), wait or are done."""
         states = self.states()
         rows = {}
         for t, (s, last) in states.items():
@@ -311,6 +375,8 @@ class Runner:
                 status = "failed"
             elif s == "done":
                 status = "done"
+            elif t in placing:
+                status = "placing"
             elif t in running:
                 status = "running"
             else:
@@ -322,10 +388,13 @@ class Runner:
             f"{t} gen {rows[t]['generation'] if rows[t]['generation'] is not None else '-'}"
             f"/{rows[t]['generations']}"
             for t in running
+            if t not in placing
         )
         return (
             f"trials: {counts['done']} done, {counts['running']} running ({busy or 'none'}), "
-            f"{len(waiting)} waiting" + (f", {len(failed)} failed" if failed else "")
+            + (f"{len(placing)} waiting for CPUs ({', '.join(placing)}), " if placing else "")
+            + f"{len(waiting)} waiting"
+            + (f", {len(failed)} failed" if failed else "")
         )
 
     # ---- phase 2: evaluation ----------------------------------------------------------------

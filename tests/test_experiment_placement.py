@@ -1,0 +1,155 @@
+"""Each trial of an experiment runs in a placement group of its own, on a two-node Ray
+cluster (two raylets on this machine, 2 CPUs each): its task takes the first bundle and
+whatever it starts (an env runner's CPU, a member actor) lands in the same group, trials
+run side by side on different nodes, a trial that does not fit yet waits as "waiting for
+CPUs", one bigger than a node spreads over nodes, and every group is removed afterwards."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import ray
+import yaml
+from ray.cluster_utils import Cluster
+
+from hola_ray.experiment import Experiment, Runner
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module", autouse=True)
+def two_nodes():
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 2})
+    cluster.add_node(num_cpus=2)
+    cluster.wait_for_nodes()
+    ray.init(address=cluster.address, include_dashboard=False)
+    # the stand-in trials below travel by value: Ray's workers cannot import a test module
+    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    yield
+    ray.shutdown()
+    cluster.shutdown()
+
+
+def experiment(tmp_path: Path, env_runners: int, methods=("hola", "sp"), parallel=0):
+    config = {
+        "base": str(ROOT / "configs" / "smoke.yaml"),
+        "overrides": {"oracle": {"env_runners": env_runners}},
+        "methods": {m: {} for m in methods},
+        "seeds": [0],
+        "parallel": parallel,
+    }
+    path = tmp_path / "exp.yaml"
+    path.write_text(yaml.safe_dump(config))
+    return Experiment.from_yaml(path)
+
+
+def stand_in(meet: int):
+    """A stand-in trial: it starts what a trial starts (one CPU per env runner, a member
+    actor asking for no CPU of its own), notes where each of them and itself run, and waits
+    until `meet` trials have started (so that it fails unless they run side by side)."""
+
+    def trial(config: dict, run_dir: str) -> str:
+        @ray.remote(num_cpus=1)
+        class EnvRunner:
+            def where(self):
+                return (
+                    ray.util.get_current_placement_group().id.hex(),
+                    ray.get_runtime_context().get_node_id(),
+                )
+
+        @ray.remote
+        class Member:
+            def where(self):
+                return (
+                    ray.util.get_current_placement_group().id.hex(),
+                    ray.get_runtime_context().get_node_id(),
+                )
+
+        runners = [EnvRunner.remote() for _ in range(config["oracle"]["env_runners"])]
+        member = Member.remote()
+        root = Path(run_dir)
+        root.mkdir(parents=True)
+        (root.parent / f"{root.name}.started").touch()
+        deadline = time.monotonic() + 120
+        while len(list(root.parent.glob("*.started"))) < meet:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{meet} trials never ran at once")
+            time.sleep(0.1)
+        seen = {
+            "trial": [
+                ray.util.get_current_placement_group().id.hex(),
+                ray.get_runtime_context().get_node_id(),
+            ],
+            "runners": ray.get([r.where.remote() for r in runners]),
+            "member": ray.get(member.where.remote()),
+        }
+        time.sleep(0.5)  # long enough for the runner's view to see it running
+        (root / "where.json").write_text(json.dumps(seen))
+        return run_dir
+
+    return trial
+
+
+def run(exp: Experiment, out: Path, meet: int) -> tuple[Runner, list[str]]:
+    class Probe(Runner):
+        trial_fn = staticmethod(stand_in(meet))
+
+    lines: list[str] = []
+    runner = Probe(exp, out, say=lines.append, poll_s=0.2)
+    runner.train()
+    return runner, lines
+
+
+def seen(runner: Runner, trial: str) -> dict:
+    return json.loads((runner.trial_dir(trial) / "where.json").read_text())
+
+
+def test_trials_run_side_by_side_each_with_what_it_starts_in_its_own_group(tmp_path):
+    exp = experiment(tmp_path, env_runners=1)
+    runner = Runner(exp, tmp_path / "out")
+    assert runner.bundles("hola-s0") == [{"CPU": 1.0}, {"CPU": 1.0}]
+    assert runner.parallel() == 2  # 4 CPUs, 2 per trial
+    runner, lines = run(exp, tmp_path / "out", meet=2)  # fails unless both run at once
+    assert "training 2 trial(s), 2 at a time" in lines
+    where = {t: seen(runner, t) for t in exp.trials()}
+    for t, w in where.items():
+        group, node = w["trial"]
+        assert w["runners"] == [[group, node]], (t, w)  # packed on the trial's node
+        assert w["member"][0] == group, (t, w)
+    assert where["hola-s0"]["trial"][0] != where["sp-s0"]["trial"][0]  # one group per trial
+    assert where["hola-s0"]["trial"][1] != where["sp-s0"]["trial"][1]  # a node each
+    table = ray.util.placement_group_table()
+    for w in where.values():
+        assert table[w["trial"][0]]["state"] == "REMOVED"
+        assert list(table[w["trial"][0]]["bundles"].values()) == [{"CPU": 1.0}, {"CPU": 1.0}]
+
+
+def test_a_trial_that_cannot_fit_yet_is_shown_waiting_for_cpus(tmp_path):
+    # three trials at once asked for, 2 CPUs each, on 4 CPUs: the third waits for CPUs
+    # rather than starting with its env runner unplaced
+    exp = experiment(tmp_path, env_runners=1, methods=("hola", "sp", "uniform"), parallel=3)
+    runner, lines = run(exp, tmp_path / "out", meet=1)
+    assert any("1 waiting for CPUs (" in line for line in lines), lines
+    assert len({seen(runner, t)["trial"][0] for t in exp.trials()}) == 3
+
+
+def test_a_trial_bigger_than_a_node_spreads_and_one_bigger_than_the_cluster_is_reported(
+    tmp_path,
+):
+    exp = experiment(tmp_path, env_runners=3, methods=("hola",))
+    runner, _ = run(exp, tmp_path / "out", meet=1)
+    w = seen(runner, "hola-s0")
+    assert {g for g, _ in w["runners"]} == {w["trial"][0]}
+    assert len({n for _, n in w["runners"]} | {w["trial"][1]}) == 2  # over both nodes
+
+    lines: list[str] = []
+    big = Runner(experiment(tmp_path, env_runners=4, methods=("hola",)), tmp_path / "big")
+    big.say = lines.append
+    big._check_fits(["hola-s0"])
+    assert lines == [
+        "warning: hola-s0 needs 5 CPU(s) and the cluster has 4: it waits until nodes join"
+    ]
