@@ -12,21 +12,26 @@ of the base), the seeds and the evaluation:
       hola: {}
       sp: {generations: 12}
     seeds: [0, 1, 2]
-    parallel: 0                       # trials at once; 0: as many as the cluster's CPUs allow
+    parallel: 0                       # trials started at once; 0: all (Ray runs those that fit)
     evaluation: {episodes: 50, seeds: [0, 1, 2], cell_episodes: 10, pools: [hot, het],
                  learner: final}      # final: learner.pt; best: best.pt
 
 Each trial (method × seed) is one `Trainer` run in `DIR/trials/<method>-s<seed>/`, run as a
-Ray task; up to `parallel` of them at once, spread over the cluster's nodes (each trial's
-env runners and member actors are scheduled by Ray wherever CPUs are free). A trial whose
-run directory holds its last generation is done and never rerun: `--resume DIR` skips it,
-continues a trial that was cut short from its last complete generation and starts the
-rest. Then every trial's learner is evaluated against the pools (`hola_ray.evaluate`, one
-Ray task per trial, cached in `DIR/evaluation/`), and the experiment writes
-`DIR/results.json` (per trial and per method), `DIR/results.md` and `DIR/figure.png`
-(the paper's Fig. 4 layout, one bar per method: the mean over its seeds, error bars the
-standard error over seeds). While it runs, a line every few seconds (and
-`DIR/progress.json`) says which trials run, wait or are done.
+Ray task in a placement group of its own: one bundle for the trial's process (its PPO
+learner, with `oracle.gpus_per_learner` GPUs) and one CPU per env runner, packed onto one
+node where one has room. The env runners and member actors the trial starts are placed in
+that group (its coordinator, which holds no CPU, on the trial's own node), so a trial never
+waits for a CPU another trial took. With `parallel: 0` every trial asks Ray for its group
+at once: Ray runs as many as the CPUs hold and the rest wait for CPUs ("waiting for CPUs"
+in the progress view), and on an autoscaling cluster their demand is what adds nodes;
+`parallel: N` starts at most N at a time. A trial whose run directory holds its last
+generation is done and never rerun: `--resume DIR` skips it, continues a trial that was cut
+short from its last complete generation and starts the rest. Then every trial's learner is
+evaluated against the pools (`hola_ray.evaluate`, one Ray task per trial, cached in
+`DIR/evaluation/`), and the experiment writes `DIR/results.json` (per trial and per
+method), `DIR/results.md` and `DIR/figure.png` (the paper's Fig. 4 layout, one bar per
+method: the mean over its seeds, error bars the standard error over seeds). While it runs,
+a line every few seconds (and `DIR/progress.json`) says which trials run, wait or are done.
 """
 
 from __future__ import annotations
@@ -166,13 +171,16 @@ def deep_merge(base: Mapping[str, Any], patch: Mapping[str, Any]) -> dict[str, A
 
 # ---- trials on Ray --------------------------------------------------------------------------
 def trial_state(run_dir: Path, generations: int) -> tuple[str, int | None]:
-    """('done' | 'partial' | 'new', last complete generation) of a trial's run directory."""
+    """('done' | 'partial' | 'new', last complete generation) of a trial's run directory.
+    Done: its last generation is complete and so is learner.pt (written just after it)."""
     from hola_ray.population.rundir import RunDir
 
-    last = RunDir(run_dir).last_completed()
+    run = RunDir(run_dir)
+    last = run.last_completed()
     if last is None:
         return "new", None
-    return ("done" if last >= generations else "partial"), last
+    done = last >= generations and run.learner_generation() == last
+    return ("done" if done else "partial"), last
 
 
 def _run_trial(config: dict[str, Any], run_dir: str) -> str:
@@ -245,12 +253,15 @@ class Runner:
         return [head] + [{"CPU": 1.0} for _ in range(oracle.env_runners)]
 
     def parallel(self) -> int:
-        """Trials at once: the config's, else as many as the cluster's CPUs (and GPUs, for
-        trials that want them) hold."""
+        """Trials started at once: the config's `parallel`, else all of them (their
+        placement groups wait in Ray until CPUs are free, or an autoscaler adds nodes)."""
+        return self.exp.parallel if self.exp.parallel > 0 else len(self.exp.trials())
+
+    def fit_now(self) -> int:
+        """How many trials the cluster's CPUs (and GPUs, for trials that want them) hold
+        side by side as it is now."""
         import ray
 
-        if self.exp.parallel > 0:
-            return self.exp.parallel
         have = ray.cluster_resources()
         width = len(self.exp.trials())
         for t in self.exp.trials():
@@ -309,7 +320,11 @@ class Runner:
             return
         remote = ray.remote(max_retries=0)(self.trial_fn)
         width = self.parallel()
-        self.say(f"training {len(todo)} trial(s), {width} at a time")
+        self.say(
+            f"training {len(todo)} trial(s), "
+            + (f"{width} at a time" if self.exp.parallel else "all asking Ray for CPUs at once")
+            + f"; this cluster holds {self.fit_now()} side by side now"
+        )
         self._check_fits(todo)
         running: dict[Any, str] = {}
         groups: dict[str, Any] = {}

@@ -101,11 +101,14 @@ def with_generations(config: RunConfig, generations: int) -> RunConfig:
 
 
 def finished(out: Path, config: RunConfig) -> bool:
-    """A resumed run that already holds its last generation: say so instead of starting."""
+    """A resumed run that already holds its last generation: say so instead of starting.
+    One killed just after committing it, before learner.pt, is not finished: the trainer
+    writes that file again and trains nothing more."""
     from hola_ray.population.rundir import RunDir
 
-    last = RunDir(out).last_completed()
-    if last is None or last < config.generations:
+    run = RunDir(out)
+    last = run.last_completed()
+    if last is None or last < config.generations or run.learner_generation() != last:
         return False
     print(
         f"{out} is finished: generation {last} of {config.generations} is done; train it "

@@ -112,9 +112,12 @@ def test_trials_run_side_by_side_each_with_what_it_starts_in_its_own_group(tmp_p
     exp = experiment(tmp_path, env_runners=1)
     runner = Runner(exp, tmp_path / "out")
     assert runner.bundles("hola-s0") == [{"CPU": 1.0}, {"CPU": 1.0}]
-    assert runner.parallel() == 2  # 4 CPUs, 2 per trial
+    assert runner.fit_now() == 2  # 4 CPUs, 2 per trial
     runner, lines = run(exp, tmp_path / "out", meet=2)  # fails unless both run at once
-    assert "training 2 trial(s), 2 at a time" in lines
+    assert (
+        "training 2 trial(s), all asking Ray for CPUs at once; "
+        "this cluster holds 2 side by side now" in lines
+    )
     where = {t: seen(runner, t) for t in exp.trials()}
     for t, w in where.items():
         group, node = w["trial"]
@@ -129,9 +132,9 @@ def test_trials_run_side_by_side_each_with_what_it_starts_in_its_own_group(tmp_p
 
 
 def test_a_trial_that_cannot_fit_yet_is_shown_waiting_for_cpus(tmp_path):
-    # three trials at once asked for, 2 CPUs each, on 4 CPUs: the third waits for CPUs
-    # rather than starting with its env runner unplaced
-    exp = experiment(tmp_path, env_runners=1, methods=("hola", "sp", "uniform"), parallel=3)
+    # three trials asking for 2 CPUs each, on 4 CPUs: the third waits for CPUs rather
+    # than starting with its env runner unplaced
+    exp = experiment(tmp_path, env_runners=1, methods=("hola", "sp", "uniform"))
     runner, lines = run(exp, tmp_path / "out", meet=1)
     assert any("1 waiting for CPUs (" in line for line in lines), lines
     assert len({seen(runner, t)["trial"][0] for t in exp.trials()}) == 3

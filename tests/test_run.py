@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 import ray
+import torch
 import yaml
 
 from hola_ray import run, status
@@ -96,6 +97,61 @@ def test_smoke_run_writes_the_whole_run_directory(smoke_run):
     assert {row["generation"] for row in its} == {0, 1}
     assert all(0 < row["std_median"] <= 1 / 3**0.5 + 1e-6 for row in its)  # a Beta's bound
     assert r.iterations_csv.is_file() and "std_median" in rows[1] and "clipped" in rows[1]
+
+
+def test_a_run_killed_between_its_last_generation_and_learner_pt_is_not_done(smoke_run, tmp_path):
+    """A kill after generation g's folder is committed but before learner.pt, learner.json
+    and best.* are written: the run is not finished, the experiment's trial is not done,
+    and resuming writes the same files again from the generation folders."""
+    import json
+    import shutil
+
+    from hola_ray.experiment import trial_state
+    from hola_ray.methods.config import RunConfig
+    from hola_ray.methods.hola import Trainer
+
+    out = tmp_path / "killed"
+    shutil.copytree(smoke_run[0], out, ignore=shutil.ignore_patterns(".lock"))
+    kept = {n: (out / n).read_bytes() for n in ("learner.json", "best.json")}
+    weights = torch.load(out / "learner.pt", weights_only=True)
+    config = RunConfig.from_yaml(out / "config.yaml")
+    assert trial_state(out, 1) == ("done", 1) and run.finished(out, config)
+    for name in ("learner.pt", "learner.json", "best.pt", "best.json"):
+        (out / name).unlink()
+    assert trial_state(out, 1) == ("partial", 1)
+    assert not run.finished(out, config)
+
+    said: list[str] = []
+    trainer = Trainer(config, out, progress=False)
+    trainer._say = said.append
+    trainer._catch_up(1)
+    assert said == [
+        "best.pt written again from generation 1",
+        "learner.pt written again from generation 1",
+    ]
+    assert {n: (out / n).read_bytes() for n in kept} == kept
+    for path in (out / "learner.pt", out / "best.pt"):
+        again = torch.load(path, weights_only=True)
+        assert json.dumps(again["scenario"]) == json.dumps(weights["scenario"])
+        for key, value in weights.items():
+            if isinstance(value, torch.Tensor):
+                assert torch.equal(again[key], value), key
+    assert trial_state(out, 1) == ("done", 1)
+    trainer._catch_up(1)  # nothing left to write
+    assert len(said) == 2
+
+
+def test_best_of_completed_is_what_keep_best_kept_generation_by_generation(tmp_path):
+    r = RunDir(tmp_path)
+    r.create("{}")
+    scores = {1: (0.2, 0.9), 2: (0.5, 0.8), 3: (0.5, 0.4), 4: (0.5, 0.4), 5: (0.1, 0.0)}
+    r.write_generation(0, {"metrics.json": {}}, None)
+    for g, (success, collision) in scores.items():
+        row = {"learner_success": success, "learner_collision": collision, "learner_length": 9.0}
+        r.write_generation(g, {"metrics.json": row}, {"w": torch.zeros(1)})
+        r.keep_best(g, row, {"g": g})
+    assert r.best_generation() == 3  # more success, then less collision, the earlier of ties
+    assert r.best_of_completed() == 3
 
 
 def test_self_play_run_seats_one_learner_and_keeps_its_best(tmp_path):

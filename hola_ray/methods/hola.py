@@ -99,6 +99,7 @@ class Trainer:
                 last = 0
             else:
                 self._say(f"resuming after generation {last} in {self.run.root}")
+                self._catch_up(last)
             if last < self.config.generations:
                 oracle = Oracle(self.config)
                 learner = self.run.load_learner_state(last)
@@ -230,17 +231,9 @@ class Trainer:
         row = ray.get(
             self.coord.commit.remote(g, metrics, learner_state, decision, stats.iteration_log)
         )
-        self.run.save_learner(export)
-        self.run.save_learner_info(
-            {
-                "generation": g,
-                "method": c.method,
-                "in_population": None if decision is None else bool(decision.accepted),
-                "node": None if decision is None or not decision.accepted else decision.candidate,
-                "population": "population/members.json" if decision is not None else None,
-            }
-        )
+        # best.pt first: learner.json, written last, says the generation is wholly saved
         best = self.run.keep_best(g, row, export)
+        self._save_learner(g, export, None if decision is None else decision.to_dict())
         if decision is None:
             verdict = (
                 "best so far" if best else f"best stays generation {self.run.best_generation()}"
@@ -266,6 +259,41 @@ class Trainer:
             f"oracle {oracle_s:.0f}s ({stats.env_steps_per_s:.0f} steps/s)"
         )
         return row
+
+    def _save_learner(self, g: int, export: dict[str, Any], decision: dict | None) -> None:
+        """learner.pt and learner.json: generation g's learner, and whether it joined."""
+        accepted = decision is not None and bool(decision["accepted"])
+        self.run.save_learner(export)
+        self.run.save_learner_info(
+            {
+                "generation": g,
+                "method": self.config.method,
+                "in_population": None if decision is None else accepted,
+                "node": decision["candidate"] if accepted else None,
+                "population": "population/members.json" if decision is not None else None,
+            }
+        )
+
+    def _catch_up(self, last: int) -> None:
+        """A run killed after committing generation `last` but before writing the files
+        at the top of its directory: best.pt and best.json from the best of the completed
+        generations, then learner.pt and learner.json (the last written, so a learner.json
+        of generation `last` says all of them are) from that generation's folder."""
+        if last < 1 or not (self.run.generation(last) / "learner.rllib.pt").is_file():
+            return
+        best = self.run.best_of_completed()
+        if best is not None and (self.run.best_generation() != best or not self.run.best.is_file()):
+            self.run.best_info.unlink(missing_ok=True)
+            state = self.run.load_learner_state(best)
+            self.run.keep_best(
+                best, self.run.read_json(best, "metrics.json"), self.config.export(state)
+            )
+            self._say(f"best.pt written again from generation {best}")
+        if self.run.learner_generation() != last:
+            state = self.run.load_learner_state(last)
+            decision = self.run.read_json(last, "state.json")["decision"]
+            self._save_learner(last, self.config.export(state), decision)
+            self._say(f"learner.pt written again from generation {last}")
 
     def _seat_pbt_agent(self, g: int, oracle: Oracle) -> int:
         """PBT: generation g trains agent (g − 1) mod K: its weights go into the learner,

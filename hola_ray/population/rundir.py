@@ -23,7 +23,10 @@
                                   slot_K.pt per member, members.json (slot → node, η, φ)
 
 A generation folder is written under a temporary name and renamed into place, so it is
-either complete or absent: the last complete folder is where `--resume` starts.
+either complete or absent: the last complete folder is where `--resume` starts. The files
+at the top (learner.pt, learner.json, best.pt, best.json) are written after it; a run killed
+in between gets them again from the generation folders when it is resumed
+(`Trainer.fit`, `learner_generation` says which generation learner.pt holds).
 """
 
 from __future__ import annotations
@@ -39,6 +42,11 @@ from typing import Any
 import torch
 
 GEN_PREFIX = "gen_"
+
+
+def best_score(row: Mapping[str, Any]) -> tuple[float, float]:
+    """What `best.pt` is judged on: learner success, then lower learner collision."""
+    return float(row["learner_success"]), -float(row["learner_collision"])
 
 
 class RunDir:
@@ -104,6 +112,13 @@ class RunDir:
     def save_learner_info(self, info: Mapping[str, Any]) -> None:
         _atomic_write_text(self.root / "learner.json", json.dumps(dict(info), indent=1))
 
+    def learner_generation(self) -> int | None:
+        """The generation whose learner `learner.pt` holds (learner.json), if any."""
+        info = self.root / "learner.json"
+        if not info.is_file() or not self.learner.is_file():
+            return None
+        return int(json.loads(info.read_text())["generation"])
+
     def save_learner(self, export: Mapping[str, Any]) -> None:
         """The latest learner as a plain-torch export (`MLPPolicy.load(config, path)`)."""
         _atomic_torch_save(dict(export), self.learner)
@@ -117,10 +132,9 @@ class RunDir:
     def keep_best(self, g: int, row: Mapping[str, Any], export: Mapping[str, Any]) -> bool:
         """Make generation g's learner `best.pt` if it judged better than the one kept:
         higher learner_success, then lower learner_collision. Returns whether it did."""
-        score = (float(row["learner_success"]), -float(row["learner_collision"]))
         if self.best_info.is_file():
             kept = json.loads(self.best_info.read_text())
-            if score <= (kept["learner_success"], -kept["learner_collision"]):
+            if best_score(row) <= best_score(kept):
                 return False
         info = {
             "generation": g,
@@ -134,6 +148,18 @@ class RunDir:
         _atomic_torch_save(dict(export), self.best)
         _atomic_write_text(self.best_info, json.dumps(info, indent=1))
         return True
+
+    def best_of_completed(self) -> int | None:
+        """The completed generation `keep_best` picks, generation by generation, from
+        their metrics (the earliest of equal scores); None before generation 1."""
+        best, kept = None, None
+        for g in self.completed():
+            if g < 1 or not (self.generation(g) / "learner.rllib.pt").is_file():
+                continue
+            score = best_score(self.read_json(g, "metrics.json"))
+            if kept is None or score > kept:
+                best, kept = g, score
+        return best
 
     # ---- generations --------------------------------------------------------------------
     def generation(self, g: int) -> Path:
