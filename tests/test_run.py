@@ -154,30 +154,6 @@ def test_best_of_completed_is_what_keep_best_kept_generation_by_generation(tmp_p
     assert r.best_of_completed() == 3
 
 
-def test_self_play_run_seats_one_learner_and_keeps_its_best(tmp_path):
-    """method sp: no population and no pre-training; each generation judges the exported
-    learner as the whole team; learner.pt is the latest, best.pt the best judged."""
-    config = tmp_path / "sp.yaml"
-    smoke = yaml.safe_load(SMOKE.read_text())
-    config.write_text(yaml.safe_dump(smoke | {"method": "sp", "generations": 2}))
-    out = tmp_path / "sp"
-    done = main_job("--config", str(config), "--out", str(out))
-    assert done.returncode == 0, done.stderr[-3000:]
-    r = RunDir(out)
-    assert r.completed() == [1, 2]
-    assert not list(r.members.glob("*.pt"))
-    rows = r.metrics_rows()
-    assert all(row["population_size"] == 0 and "grapher_s" not in row for row in rows)
-    assert all(row["learner_episodes"] == smoke["grapher"]["episodes_per_edge"] for row in rows)
-    best = r.best_generation()
-    score = {row["generation"]: (row["learner_success"], -row["learner_collision"]) for row in rows}
-    assert score[best] == max(score.values())
-    env = PursuitConfig.from_yaml(SMOKE)
-    for path in (r.learner, r.best):
-        assert rollout(env, [MLPPolicy.load(env, path)] * 3, episodes=2).episodes == 2
-    assert status.main([str(out), "--plot"]) == 0
-
-
 def _digest(run_dir: RunDir, g: int) -> str:
     h = hashlib.sha256()
     for p in sorted(run_dir.generation(g).iterdir()):
@@ -296,78 +272,3 @@ def test_a_fresh_run_refuses_a_used_run_directory(tmp_path, capsys):
     assert "--resume" in capsys.readouterr().err
     assert run.main(["--resume", str(tmp_path / "nothing")]) == 2
     assert not ray.is_initialized()
-
-
-@pytest.mark.parametrize("method", ["fcp", "mep"])
-def test_best_response_methods_keep_their_population_fixed(tmp_path, method):
-    """fcp: the population is two self-play agents' start, middle and end checkpoints;
-    mep: the MEP population, partners then drawn by the rank of the learner's returns.
-    Neither admits the learner; both train it as a best response, drawn as they say."""
-    import json
-
-    config = tmp_path / f"{method}.yaml"
-    smoke = yaml.safe_load(SMOKE.read_text())
-    patch = {"method": method, "generations": 1}
-    if method == "fcp":
-        patch |= {"fcp": {"agents": 1, "env_steps": 2000}, "population": {"max_size": 4}}
-    config.write_text(yaml.safe_dump(smoke | patch))
-    out = tmp_path / method
-    done = main_job("--config", str(config), "--out", str(out))
-    assert done.returncode == 0, done.stderr[-3000:]
-    r = RunDir(out)
-    assert r.completed() == [0, 1]
-    rows = r.metrics_rows()
-    size = 3 if method == "fcp" else smoke["population"]["initial_size"]
-    assert [row["population_size"] for row in rows] == [size] * 2
-    assert rows[1]["accepted"] == 0
-    states = [json.loads((r.generation(g) / "state.json").read_text()) for g in (0, 1)]
-    assert all(sorted(s["population"]["slots"]) == [str(v) for v in range(size)] for s in states)
-    phi = json.loads((r.generation(1) / "phi.json").read_text())
-    if method == "fcp":
-        assert "trained 1 self-play agent(s) for FCP (3 checkpoints)" in done.stdout
-        assert all(v == pytest.approx(1 / 3) for v in phi.values())
-    else:
-        from hola_ray.population.state import rank_priorities
-
-        returns = {int(k): v for k, v in states[1]["population"]["learner_returns"].items()}
-        assert set(returns) == set(range(size))  # every member met the learner
-        full = {v: returns.get(v) for v in range(size)}
-        assert {int(k): v for k, v in phi.items()} == pytest.approx(rank_priorities(full, 3.0))
-
-
-def test_pbt_trains_its_agents_in_turn_and_exploits_the_best(tmp_path):
-    """pbt: three agents trained jointly, then one per generation with the other two; after
-    each has trained once, the lowest-scoring one takes the best one's weights (and lr and
-    entropy coefficient, perturbed)."""
-    import json
-
-    import torch
-
-    config = tmp_path / "pbt.yaml"
-    smoke = yaml.safe_load(SMOKE.read_text())
-    patch = {"method": "pbt", "generations": 3, "pbt": {"quantile": 0.34}}
-    config.write_text(yaml.safe_dump(smoke | patch))
-    out = tmp_path / "pbt"
-    done = main_job("--config", str(config), "--out", str(out))
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert "pre-trained 3 members jointly (PBT's start)" in done.stdout
-    r = RunDir(out)
-    states = [json.loads((r.generation(g) / "state.json").read_text()) for g in (1, 2, 3)]
-    assert [s["decision"]["slot"] for s in states] == [0, 1, 2]  # each agent in turn
-    assert all(s["decision"]["replaced"] == g for g, s in enumerate(states))  # its parent
-    last = states[-1]
-    scores = {int(k): v for k, v in last["population"]["agent_scores"].items()}
-    hyper = {int(k): v for k, v in last["population"]["agent_hyper"].items()}
-    source = last["decision"]["copied_from"]
-    slots = {int(k): v for k, v in last["population"]["slots"].items()}
-    if source is not None:  # agent 2 was the lowest: it exploits the best agent
-        top = slots[source]
-        assert scores[2] == scores[top] == max(scores.values())
-        assert hyper[2] != hyper[top]  # explored
-        candidate = last["decision"]["candidate"]
-        copied = torch.load(r.member_export(candidate), weights_only=False)
-        original = torch.load(r.member_export(source), weights_only=False)
-        for w1, w2 in zip(copied["weights"], original["weights"], strict=True):
-            assert torch.equal(w1, w2)
-    else:  # agent 2 scored above the lowest: nobody exploits on its turn
-        assert scores[2] > min(scores.values())

@@ -1,0 +1,127 @@
+"""Each method's run, end to end on the smoke config: self-play, FCP and MEP (best
+responses to a fixed population) and PBT (agents in turn, exploit and explore). One Ray
+session for the module, each run a `Trainer` in this process (what `python -m hola_ray.run`
+calls; the CLI around it is tested in tests/test_run.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from hola_ray import status
+from hola_ray.env.config import PursuitConfig
+from hola_ray.evaluation.rollout import rollout
+from hola_ray.methods.config import RunConfig
+from hola_ray.methods.hola import Trainer
+from hola_ray.policies.learned import MLPPolicy
+from hola_ray.population.rundir import RunDir
+
+ROOT = Path(__file__).resolve().parents[2]
+SMOKE = ROOT / "configs" / "smoke.yaml"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _ray(ray_session):
+    return ray_session
+
+
+def train(config: dict, out: Path, capsys) -> str:
+    """Train `config` into `out`; what the trainer printed."""
+    capsys.readouterr()
+    Trainer(RunConfig.from_dict(config), out, progress=False).fit()
+    return capsys.readouterr().out
+
+
+def test_self_play_run_seats_one_learner_and_keeps_its_best(tmp_path, capsys):
+    """method sp: no population and no pre-training; each generation judges the exported
+    learner as the whole team; learner.pt is the latest, best.pt the best judged."""
+    smoke = yaml.safe_load(SMOKE.read_text())
+    run_config = smoke | {"method": "sp", "generations": 2}
+    out = tmp_path / "sp"
+    train(run_config, out, capsys)
+    r = RunDir(out)
+    assert r.completed() == [1, 2]
+    assert not list(r.members.glob("*.pt"))
+    rows = r.metrics_rows()
+    assert all(row["population_size"] == 0 and "grapher_s" not in row for row in rows)
+    assert all(row["learner_episodes"] == smoke["grapher"]["episodes_per_edge"] for row in rows)
+    best = r.best_generation()
+    score = {row["generation"]: (row["learner_success"], -row["learner_collision"]) for row in rows}
+    assert score[best] == max(score.values())
+    env = PursuitConfig.from_yaml(SMOKE)
+    for path in (r.learner, r.best):
+        assert rollout(env, [MLPPolicy.load(env, path)] * 3, episodes=2).episodes == 2
+    assert status.main([str(out), "--plot"]) == 0
+
+
+@pytest.mark.parametrize("method", ["fcp", "mep"])
+def test_best_response_methods_keep_their_population_fixed(tmp_path, capsys, method):
+    """fcp: the population is two self-play agents' start, middle and end checkpoints;
+    mep: the MEP population, partners then drawn by the rank of the learner's returns.
+    Neither admits the learner; both train it as a best response, drawn as they say."""
+    import json
+
+    smoke = yaml.safe_load(SMOKE.read_text())
+    patch = {"method": method, "generations": 1}
+    if method == "fcp":
+        patch |= {"fcp": {"agents": 1, "env_steps": 2000}, "population": {"max_size": 4}}
+    run_config = smoke | patch
+    out = tmp_path / method
+    said = train(run_config, out, capsys)
+    r = RunDir(out)
+    assert r.completed() == [0, 1]
+    rows = r.metrics_rows()
+    size = 3 if method == "fcp" else smoke["population"]["initial_size"]
+    assert [row["population_size"] for row in rows] == [size] * 2
+    assert rows[1]["accepted"] == 0
+    states = [json.loads((r.generation(g) / "state.json").read_text()) for g in (0, 1)]
+    assert all(sorted(s["population"]["slots"]) == [str(v) for v in range(size)] for s in states)
+    phi = json.loads((r.generation(1) / "phi.json").read_text())
+    if method == "fcp":
+        assert "trained 1 self-play agent(s) for FCP (3 checkpoints)" in said
+        assert all(v == pytest.approx(1 / 3) for v in phi.values())
+    else:
+        from hola_ray.population.state import rank_priorities
+
+        returns = {int(k): v for k, v in states[1]["population"]["learner_returns"].items()}
+        assert set(returns) == set(range(size))  # every member met the learner
+        full = {v: returns.get(v) for v in range(size)}
+        assert {int(k): v for k, v in phi.items()} == pytest.approx(rank_priorities(full, 3.0))
+
+
+def test_pbt_trains_its_agents_in_turn_and_exploits_the_best(tmp_path, capsys):
+    """pbt: three agents trained jointly, then one per generation with the other two; after
+    each has trained once, the lowest-scoring one takes the best one's weights (and lr and
+    entropy coefficient, perturbed)."""
+    import json
+
+    import torch
+
+    smoke = yaml.safe_load(SMOKE.read_text())
+    patch = {"method": "pbt", "generations": 3, "pbt": {"quantile": 0.34}}
+    run_config = smoke | patch
+    out = tmp_path / "pbt"
+    said = train(run_config, out, capsys)
+    assert "pre-trained 3 members jointly (PBT's start)" in said
+    r = RunDir(out)
+    states = [json.loads((r.generation(g) / "state.json").read_text()) for g in (1, 2, 3)]
+    assert [s["decision"]["slot"] for s in states] == [0, 1, 2]  # each agent in turn
+    assert all(s["decision"]["replaced"] == g for g, s in enumerate(states))  # its parent
+    last = states[-1]
+    scores = {int(k): v for k, v in last["population"]["agent_scores"].items()}
+    hyper = {int(k): v for k, v in last["population"]["agent_hyper"].items()}
+    source = last["decision"]["copied_from"]
+    slots = {int(k): v for k, v in last["population"]["slots"].items()}
+    if source is not None:  # agent 2 was the lowest: it exploits the best agent
+        top = slots[source]
+        assert scores[2] == scores[top] == max(scores.values())
+        assert hyper[2] != hyper[top]  # explored
+        candidate = last["decision"]["candidate"]
+        copied = torch.load(r.member_export(candidate), weights_only=False)
+        original = torch.load(r.member_export(source), weights_only=False)
+        for w1, w2 in zip(copied["weights"], original["weights"], strict=True):
+            assert torch.equal(w1, w2)
+    else:  # agent 2 scored above the lowest: nobody exploits on its turn
+        assert scores[2] > min(scores.values())
