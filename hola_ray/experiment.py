@@ -24,14 +24,17 @@ that group (its coordinator, which holds no CPU, on the trial's own node), so a 
 waits for a CPU another trial took. With `parallel: 0` every trial asks Ray for its group
 at once: Ray runs as many as the CPUs hold and the rest wait for CPUs ("waiting for CPUs"
 in the progress view), and on an autoscaling cluster their demand is what adds nodes;
-`parallel: N` starts at most N at a time. A trial whose run directory holds its last
-generation is done and never rerun: `--resume DIR` skips it, continues a trial that was cut
-short from its last complete generation and starts the rest. Then every trial's learner is
-evaluated against the pools (`hola_ray.evaluate`, one Ray task per trial, cached in
-`DIR/evaluation/`), and the experiment writes `DIR/results.json` (per trial and per
-method), `DIR/results.md` and `DIR/figure.png` (the paper's Fig. 4 layout, one bar per
-method: the mean over its seeds, error bars the standard error over seeds). While it runs,
-a line every few seconds (and `DIR/progress.json`) says which trials run, wait or are done.
+`parallel: N` starts at most N at a time. A trial whose node cannot see DIR (a cluster
+without a shared filesystem) trains in a staging folder there and mirrors it to DIR on the
+driver's node after every generation (`hola_ray.mirror`). A trial whose run directory holds
+its last generation is done and never rerun: `--resume DIR` skips it, continues a trial
+that was cut short from its last complete generation and starts the rest. Then every
+trial's learner is evaluated against the pools (`hola_ray.evaluate`, one Ray task per
+trial, cached in `DIR/evaluation/`), and the experiment writes `DIR/results.json` (per
+trial and per method), `DIR/results.md` and `DIR/figure.png` (the paper's Fig. 4 layout,
+one bar per method: the mean over its seeds, error bars the standard error over seeds).
+While it runs, a line every few seconds (and `DIR/progress.json`) says which trials run,
+wait or are done.
 """
 
 from __future__ import annotations
@@ -183,11 +186,63 @@ def trial_state(run_dir: Path, generations: int) -> tuple[str, int | None]:
     return ("done" if done else "partial"), last
 
 
-def _run_trial(config: dict[str, Any], run_dir: str) -> str:
-    from hola_ray.methods.hola import Trainer
+MARK = ".experiment"
+"""DIR/.experiment: a token that says which nodes see the experiment's directory"""
 
-    Trainer(RunConfig.from_dict(config), Path(run_dir), progress=False).fit()
-    return run_dir
+
+def sees(run_dir: Path, token: str | None) -> bool:
+    """Whether this node sees the experiment directory of `run_dir` (DIR/trials/<t>)."""
+    mark = Path(run_dir).parent.parent / MARK
+    try:
+        return token is not None and mark.read_text() == token
+    except OSError:
+        return False
+
+
+def _run_trial(
+    config: dict[str, Any],
+    run_dir: str,
+    token: str | None = None,
+    driver_node: str | None = None,
+    seed: bytes | None = None,
+    mirror: bool | None = None,
+) -> str:
+    """One trial. Where its node sees the experiment directory (one machine, or a shared
+    filesystem), it trains there. Elsewhere it trains in a staging folder of its node (from
+    `seed`, the driver's copy of a partial trial, if given) and mirrors it to the driver's
+    node after every generation (`hola_ray.mirror`). Returns how it stored its folder."""
+    import shutil
+    import tempfile
+
+    import ray
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+    from hola_ray.methods.hola import Trainer
+    from hola_ray.mirror import DirectorySync, Mirror, unpack
+
+    root, run_config = Path(run_dir), RunConfig.from_dict(config)
+    if mirror is None:
+        mirror = not sees(root, token)
+    if not mirror:
+        Trainer(run_config, root, progress=False).fit()
+        return "in place"
+    staging = Path(tempfile.gettempdir()) / "hola_ray-trials" / str(token) / root.name
+    if seed is not None:
+        unpack(seed, staging)
+    else:
+        shutil.rmtree(staging, ignore_errors=True)
+    where = NodeAffinitySchedulingStrategy(node_id=driver_node, soft=False)
+    actor = Mirror.options(scheduling_strategy=where).remote(str(root))
+    sync = DirectorySync(staging, actor)
+    if seed is not None:
+        sync.mark_seen()  # the driver has all of it already
+    try:
+        Trainer(run_config, staging, progress=False, saved=sync).fit()
+        sync()
+    finally:
+        ray.kill(actor)
+    shutil.rmtree(staging, ignore_errors=True)  # all of it is on the driver's node now
+    return "mirrored to the driver's node"
 
 
 def _reference(pool: str, settings: dict[str, Any], n_evaders: int) -> np.ndarray:
@@ -201,14 +256,21 @@ def _reference(pool: str, settings: dict[str, Any], n_evaders: int) -> np.ndarra
 
 
 def _evaluate_trial(
-    learner: str, settings: dict[str, Any], n_evaders: int, references: dict[str, np.ndarray]
+    learner: bytes, settings: dict[str, Any], n_evaders: int, references: dict[str, np.ndarray]
 ) -> dict[str, Any]:
+    """A learner (its file's bytes, read by the driver: any node can evaluate it) against
+    the pools."""
+    import tempfile
+
     from hola_ray.env.config import PursuitConfig
     from hola_ray.evaluate import evaluate_learner, load_learner, pools
 
     config = PursuitConfig(n_evaders=n_evaders)
     members = pools(list(settings["pools"]), [], config)
-    _, policy = load_learner(Path(learner), config)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "learner.pt"
+        path.write_bytes(learner)
+        _, policy = load_learner(path, config)
     return {
         pool: evaluate_learner(
             policy,
@@ -235,6 +297,19 @@ class Runner:
         self.eval_dir = self.out / "evaluation"
         # every trial's run config, read once (the progress view polls every few seconds)
         self.configs = {t: experiment.run_config(t) for t in experiment.trials()}
+        self.mirror: bool | None = None
+        """None: each trial mirrors its folder to this node if its own node cannot see
+        DIR (`sees`); True / False: always / never"""
+
+    def token(self) -> str:
+        """DIR/.experiment's token (made once): a trial's node that reads it sees DIR."""
+        import uuid
+
+        mark = self.out / MARK
+        if not mark.is_file():
+            self.out.mkdir(parents=True, exist_ok=True)
+            mark.write_text(uuid.uuid4().hex)
+        return mark.read_text()
 
     def trial_dir(self, trial: str) -> Path:
         return self.trials_dir / trial
@@ -309,6 +384,8 @@ class Runner:
     def train(self) -> None:
         import ray
 
+        from hola_ray.mirror import pack
+
         states = self.states()
         todo = [t for t, (s, _) in states.items() if s != "done"]
         for t, (s, last) in states.items():
@@ -326,6 +403,7 @@ class Runner:
             + f"; this cluster holds {self.fit_now()} side by side now"
         )
         self._check_fits(todo)
+        token, here = self.token(), ray.get_runtime_context().get_node_id()
         running: dict[Any, str] = {}
         groups: dict[str, Any] = {}
         placing: dict[str, Any] = {}  # trial → its group's ready(), until the group is placed
@@ -339,8 +417,15 @@ class Runner:
                     t = waiting.pop(0)
                     groups[t], options = self.place(t)
                     placing[t] = groups[t].ready()
+                    # a partial trial starts from the driver's copy wherever it lands
+                    partial = states[t][0] == "partial"
                     ref = remote.options(**options).remote(
-                        self.configs[t].to_dict(), str(self.trial_dir(t).resolve())
+                        self.configs[t].to_dict(),
+                        str(self.trial_dir(t).resolve()),
+                        token,
+                        here,
+                        pack(self.trial_dir(t)) if partial else None,
+                        self.mirror,
                     )
                     running[ref] = t
                     started[t] = time.monotonic()
@@ -348,9 +433,9 @@ class Runner:
                 for ref in ready:
                     t = running.pop(ref)
                     try:
-                        ray.get(ref)
+                        how = ray.get(ref)
                         took = time.monotonic() - started[t]
-                        self.say(f"{t}: done in {took / 60:.1f} min")
+                        self.say(f"{t}: done in {took / 60:.1f} min ({how})")
                     except Exception as err:  # noqa: BLE001 - one failed trial must not stop the rest
                         failed[t] = f"{type(err).__name__}: {str(err).splitlines()[-1][:300]}"
                         self.say(f"{t}: FAILED: {failed[t]}")
@@ -454,7 +539,7 @@ class Runner:
         self.say(f"reference returns: {time.monotonic() - start:.0f} s")
         remote = ray.remote(num_cpus=1, max_retries=1)(_evaluate_trial)
         pending: dict[Any, str] = {
-            remote.remote(str(self.learner_file(t).resolve()), settings, evaders, references): t
+            remote.remote(self.learner_file(t).read_bytes(), settings, evaders, references): t
             for t in todo
         }
         while pending:

@@ -52,7 +52,7 @@ def stand_in(meet: int):
     actor asking for no CPU of its own), notes where each of them and itself run, and waits
     until `meet` trials have started (so that it fails unless they run side by side)."""
 
-    def trial(config: dict, run_dir: str) -> str:
+    def trial(config: dict, run_dir: str, *where_to_store) -> str:
         @ray.remote(num_cpus=1)
         class EnvRunner:
             def where(self):
@@ -156,3 +156,79 @@ def test_a_trial_bigger_than_a_node_spreads_and_one_bigger_than_the_cluster_is_r
     assert lines == [
         "warning: hola-s0 needs 5 CPU(s) and the cluster has 4: it waits until nodes join"
     ]
+
+
+# ---- a trial whose node cannot see the experiment's directory -------------------------------
+def files(root: Path) -> dict[str, bytes]:
+    return {
+        p.relative_to(root).as_posix(): p.read_bytes()
+        for p in sorted(root.rglob("*"))
+        if p.is_file() and p.name != ".lock"
+    }
+
+
+def test_a_directory_is_mirrored_change_by_change_and_packs_whole(tmp_path):
+    from hola_ray.mirror import DirectorySync, Mirror, pack, unpack
+
+    source, target = tmp_path / "source", tmp_path / "target"
+    (source / "generations" / "gen_0000").mkdir(parents=True)
+    (source / "generations" / "gen_0000" / "state.json").write_text("{}")
+    (source / "population").mkdir()
+    (source / "population" / "slot_0.pt").write_bytes(b"zero")
+    (source / "learner.json").write_text('{"generation": 0}')
+    (source / ".lock").write_text("pid")
+    sync = DirectorySync(source, Mirror.remote(str(target)))
+    assert sync() == 3
+    assert files(target) == files(source) and not (target / ".lock").exists()
+    assert sync() == 0  # nothing changed, nothing sent
+
+    (source / "generations" / "gen_0001").mkdir()
+    (source / "generations" / "gen_0001" / "metrics.json").write_text('{"g": 1}')
+    (source / "population" / "slot_0.pt").unlink()  # population/ rewritten whole
+    (source / "population" / "slot_1.pt").write_bytes(b"one")
+    (source / "learner.json").write_text('{"generation": 1}')
+    assert sync() == 3
+    assert files(target) == files(source)
+    assert not list((target / "generations").glob(".tmp*"))
+
+    copy = tmp_path / "copy"
+    unpack(pack(source), copy)
+    assert files(copy) == files(source)
+
+
+def test_a_partial_trial_on_a_node_without_the_directory_resumes_and_mirrors_it(
+    tmp_path, smoke_run
+):
+    """The driver's copy of a trial cut short after generation 0 is shipped to the trial,
+    which trains in its node's staging folder and mirrors every file back."""
+    import shutil
+    import tempfile
+
+    from hola_ray.experiment import trial_state
+    from hola_ray.policies.learned import MLPPolicy
+    from hola_ray.population.rundir import RunDir
+
+    exp = experiment(tmp_path, env_runners=0, methods=("hola",))
+    runner = Runner(exp, tmp_path / "out", poll_s=0.5)
+    lines: list[str] = []
+    runner.say = lines.append
+    runner.mirror = True  # as on a node that does not see DIR
+    trial = runner.trial_dir("hola-s0")
+    shutil.copytree(smoke_run[0], trial, ignore=shutil.ignore_patterns(".lock", "gen_0001"))
+    for name in ("learner.pt", "learner.json", "best.pt", "best.json"):
+        (trial / name).unlink()
+    assert trial_state(trial, 1) == ("partial", 0)
+
+    runner.train()
+    assert any(
+        line.startswith("hola-s0: done in") and "(mirrored to the driver's node)" in line
+        for line in lines
+    ), lines
+    assert trial_state(trial, 1) == ("done", 1)
+    r = RunDir(trial)
+    assert r.completed() == [0, 1] and r.learner_generation() == 1 and r.best_generation() == 1
+    assert [row["generation"] for row in r.metrics_rows()] == [0, 1]
+    assert (trial / "population" / "members.json").is_file()
+    assert MLPPolicy.load(trial / "learner.pt").config.n_pursuers == 3
+    staging = Path(tempfile.gettempdir()) / "hola_ray-trials" / runner.token() / "hola-s0"
+    assert not staging.exists()  # removed once all of it was mirrored

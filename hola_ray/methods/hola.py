@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -58,6 +59,9 @@ class Trainer:
     progress: bool = True
     lock: RunLock | None = None
     """the run directory's lock, when the caller took it already (else `fit` takes it)"""
+    saved: Callable[[int], Any] | None = None
+    """called with g once generation g (and the files at the top) is on disk; and after a
+    resume has written those files again (the experiment mirrors a trial's folder with it)"""
 
     def __post_init__(self) -> None:
         self.run = RunDir(self.run_dir)
@@ -97,9 +101,11 @@ class Trainer:
             elif last is None:
                 rows.append(self._pretrain())
                 last = 0
+                self._saved(0)
             else:
                 self._say(f"resuming after generation {last} in {self.run.root}")
                 self._catch_up(last)
+                self._saved(last)
             if last < self.config.generations:
                 oracle = Oracle(self.config)
                 learner = self.run.load_learner_state(last)
@@ -107,6 +113,7 @@ class Trainer:
                     oracle.set_trained_weights({LEARNER: learner})
                 for g in range(last + 1, self.config.generations + 1):
                     rows.append(self._generation(g, oracle))
+                    self._saved(g)
         finally:
             if oracle is not None:
                 oracle.stop()
@@ -382,6 +389,10 @@ class Trainer:
             "grapher_episodes_per_s": round(stats.episodes_per_s, 1),
             "grapher_retries": stats.retries,
         }
+
+    def _saved(self, g: int) -> None:
+        if self.saved is not None:
+            self.saved(g)
 
     def _say(self, text: str) -> None:
         print(text, flush=True)
