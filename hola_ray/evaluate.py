@@ -47,7 +47,7 @@ import numpy as np
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import episode_seeds
-from hola_ray.policies.registry import load_policy, policy_file
+from hola_ray.policies.registry import load_export, load_policy, policy_file
 from hola_ray.pools import POOLS, PoolError, load_pool
 
 METRICS = ("success", "collision", "length")
@@ -68,11 +68,12 @@ def learner_evaders(path: Path, config: PursuitConfig) -> int:
         env = (yaml.safe_load((path / "config.yaml").read_text()) or {}).get("env") or {}
         return int(env.get("n_evaders", config.n_evaders))
     file = policy_file(path)
-    if not file.is_file():
-        raise EvaluationError(f"{path}: neither a run directory with learner.pt nor a policy file")
-    import torch
-
-    export = torch.load(file, map_location="cpu", weights_only=True)
+    try:
+        export = load_export(path)
+    except ValueError as err:
+        raise EvaluationError(str(err)) from err
+    if export.get("scenario"):
+        return int(export["scenario"].get("n_evaders", config.n_evaders))
     inputs = export["weights"][0].shape[1] - len((export.get("features") or {}).get("indices", ()))
     rest = 2 + 2 * (config.n_pursuers - 1) + 4  # obstacle, teammates, own
     if (inputs - rest) % 3 or inputs <= rest:

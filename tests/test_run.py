@@ -141,6 +141,29 @@ def test_a_run_killed_between_its_last_generation_and_learner_pt_is_not_done(smo
     assert len(said) == 2
 
 
+def test_a_generation_folder_plays_as_that_generations_learner(smoke_run, tmp_path):
+    """`RUN/generations/gen_0001` loads (evaluate, replay) as generation 1's learner: the
+    export made from its RLlib state with the run's config equals learner.pt."""
+    import shutil
+
+    from hola_ray.policies.registry import load_export, load_policy
+
+    out = smoke_run[0]
+    final = torch.load(out / "learner.pt", weights_only=True)
+    again = load_export(out / "generations" / "gen_0001")
+    assert again["scenario"] == final["scenario"]
+    for w1, w2 in zip(again["weights"], final["weights"], strict=True):
+        assert torch.equal(w1, w2)
+    env = PursuitConfig.from_yaml(SMOKE)
+    assert load_policy(out / "generations" / "gen_0001", env).name == f"{out.name}-gen_0001"
+    lone = tmp_path / "gen_0001"
+    shutil.copytree(out / "generations" / "gen_0001", lone)
+    with pytest.raises(ValueError, match="a generation folder, but .*config.yaml is missing"):
+        load_export(lone)
+    with pytest.raises(ValueError, match="neither a run directory with learner.pt"):
+        load_export(out / "generations" / "gen_0000")  # pre-training: no learner
+
+
 def test_best_of_completed_is_what_keep_best_kept_generation_by_generation(tmp_path):
     r = RunDir(tmp_path)
     r.create("{}")

@@ -31,38 +31,66 @@ def make_policy(name: str, config: PursuitConfig) -> Policy:
     return _FACTORIES[key](config)
 
 
+GENERATION_STATE = "learner.rllib.pt"
+
+
 def policy_file(path: str | Path) -> Path:
-    """A run directory → its final learner (`learner.pt`); a file → itself."""
+    """A run directory → its final learner (`learner.pt`); a generation folder
+    (`RUN/generations/gen_0012`) → that generation's learner state; a file → itself."""
     path = Path(path)
-    return path / "learner.pt" if path.is_dir() else path
+    if path.is_dir():
+        state = path / GENERATION_STATE
+        return (
+            state if state.is_file() and not (path / "learner.pt").exists() else path / "learner.pt"
+        )
+    return path
+
+
+def load_export(path: str | Path) -> dict:
+    """The plain-torch export of a run directory's learner, of a generation's learner (made
+    from its RLlib state with the run's config.yaml) or of an export file."""
+    import torch
+
+    path = Path(path)
+    file = policy_file(path)
+    if not file.is_file():
+        raise ValueError(
+            f"{path}: neither a run directory with learner.pt, a generation folder with "
+            f"{GENERATION_STATE}, nor a policy file"
+        )
+    if file.name != GENERATION_STATE:
+        return torch.load(file, map_location="cpu", weights_only=True)
+    from hola_ray.methods.config import RunConfig
+
+    run_config = path.parent.parent / "config.yaml"
+    if not run_config.is_file():
+        raise ValueError(f"{path}: a generation folder, but {run_config} is missing")
+    state = torch.load(file, map_location="cpu", weights_only=False)  # the run's own file
+    return RunConfig.from_yaml(run_config).export(state)
 
 
 def trained_scenario(path: str | Path) -> dict | None:
     """The scenario a run directory's learner or an export file was trained in, when its
     export says (`PursuitConfig.to_dict()`); None for a name or an older export."""
-    import torch
-
-    file = policy_file(Path(path))
-    if not file.is_file():
+    try:
+        return load_export(path).get("scenario")
+    except ValueError:
         return None
-    return torch.load(file, map_location="cpu", weights_only=True).get("scenario")
 
 
 def load_policy(path: str | Path, config: PursuitConfig, name: str | None = None) -> Policy:
     """A learned policy from a run directory or an export file: an `MLPPolicy` export or a
     D3QN-G export, told apart by the export's format tag."""
-    import torch
 
     from hola_ray.policies.d3qn import D3QNG
     from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
     from hola_ray.policies.learned import MLPPolicy
 
     path = Path(path)
-    file = policy_file(path)
-    if not file.is_file():
-        raise ValueError(f"{path}: neither a run directory with learner.pt nor a policy file")
+    export = load_export(path)
+    if name is None and (path / GENERATION_STATE).is_file() and path.parent.name == "generations":
+        name = f"{path.parent.parent.name}-{path.name}"  # run-gen_0012
     name = name or (path.name if path.is_dir() else path.stem)
-    export = torch.load(file, map_location="cpu", weights_only=True)
     if export.get("format") == D3QN_FORMAT:
         return D3QNG(config, export, name=name)
     return MLPPolicy(config, export, name=name)
