@@ -51,6 +51,9 @@ from hola_ray.policies.registry import load_export, load_policy, policy_file
 from hola_ray.pools import POOLS, PoolError, load_pool
 
 METRICS = ("success", "collision", "length")
+CRASHES = ("learner_crash", "teammate_crash")
+"""whose collisions: the share of episodes in which the learner's own seat collided, and
+the share of teammate seats that collided (`collision` counts an episode with any)"""
 
 
 class EvaluationError(RuntimeError):
@@ -143,14 +146,18 @@ def draw_teams(rng: np.random.Generator, episodes: int, n_p: int, members: int) 
 def seed_means(
     learner, members: list, config: PursuitConfig, episodes: int, seeds: Sequence[int]
 ) -> dict[str, np.ndarray]:
-    """Per-seed means [S] of success, collision and length with drawn teams."""
-    out: dict[str, list[float]] = {m: [] for m in METRICS}
+    """Per-seed means [S] of success, collision and length with drawn teams, and of who
+    collided (`CRASHES`)."""
+    out: dict[str, list[float]] = {m: [] for m in (*METRICS, *CRASHES)}
     for s in seeds:
         rng = np.random.default_rng(np.random.SeedSequence([int(s), 7]))
         teams = draw_teams(rng, episodes, config.n_pursuers, len(members))
         result = rollout(config, [learner, *members], episodes, assignment=teams, seed=int(s))
         for m in METRICS:
             out[m].append(float(np.mean(getattr(result, m))))
+        learner_seat = teams == 0  # the learner is candidate 0, in one seat per episode
+        out["learner_crash"].append(float(result.crashed[learner_seat].mean()))
+        out["teammate_crash"].append(float(result.crashed[~learner_seat].mean()))
     return {m: np.asarray(v) for m, v in out.items()}
 
 
@@ -238,7 +245,7 @@ def evaluate_learner(
     mine = cell_returns([learner], members, config, cell_episodes, seeds)[..., 0]
     scores, dropped = br_prox(reference, mine)
     row: dict[str, Any] = {}
-    for m in METRICS:
+    for m in (*METRICS, *CRASHES):
         v = per_seed[m]
         row[m] = float(v.mean())
         row[f"{m}_se"] = float(v.std(ddof=1) / np.sqrt(v.size)) if v.size > 1 else 0.0
@@ -276,7 +283,8 @@ def evaluate(
             out[name][pool] = row
             say(
                 f"[{pool}] {name}: success {row['success']:.1%} ± {row['success_se']:.1%}, "
-                f"collision {row['collision']:.1%} ± {row['collision_se']:.1%}, length "
+                f"collision {row['collision']:.1%} ± {row['collision_se']:.1%} (learner's own "
+                f"{row['learner_crash']:.1%}, a teammate's {row['teammate_crash']:.1%}), length "
                 f"{row['length']:.0f} ± {row['length_se']:.0f}, score IQM {row['score_iqm']:.3f}"
                 f" ({time.perf_counter() - start:.0f} s)"
             )
@@ -354,7 +362,18 @@ def main(argv: list[str] | None = None) -> int:
         config = PursuitConfig(n_evaders=evaders.pop())
         names = args.pool if args.pool else ([] if args.partner else list(POOLS))
         members = pools(names, args.partner, config)
-        learners = dict(load_learner(p, config) for p in args.learners)
+        loaded = [load_learner(p, config) for p in args.learners]
+        called = [name for name, _ in loaded]
+        if len(set(called)) < len(called):  # e.g. two runs' best.pt: name them by their folder
+            called = [
+                f"{p.resolve().parent.name}/{name}" if called.count(name) > 1 else name
+                for p, name in zip(args.learners, called, strict=True)
+            ]
+        if len(set(called)) < len(called):
+            raise EvaluationError(
+                f"two learners share a name: {', '.join(map(str, args.learners))}"
+            )
+        learners = {name: policy for name, (_, policy) in zip(called, loaded, strict=True)}
     except EvaluationError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -365,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
         png, md = plot(results, out)
         print(f"wrote {png} and {md}")
     if args.json:
-        keep = ("success", "success_se", "collision", "collision_se", "length", "length_se")
+        keep = (*(k for m in (*METRICS, *CRASHES) for k in (m, f"{m}_se")),)
         print(
             json.dumps(
                 {

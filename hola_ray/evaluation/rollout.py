@@ -23,6 +23,7 @@ class RolloutResult:
     length: np.ndarray  # [N] int: steps until termination (horizon if truncated)
     team_return: np.ndarray  # [N] float: summed return of all pursuers
     captures: np.ndarray  # [N] int: evaders captured
+    crashed: np.ndarray  # [N, n_p] bool: the pursuer in that seat collided (and dropped out)
 
     @property
     def episodes(self) -> int:
@@ -110,4 +111,5 @@ def _play(
         env.t.copy(),
         env.episode_return.sum(axis=1),
         env.captures.copy(),
+        ~env.pursuer_active,
     )

@@ -157,3 +157,41 @@ def test_replay_plays_the_scenario_a_learner_was_trained_in(tmp_path, capsys):
     assert "'captures'" in capsys.readouterr().out
     with pytest.raises(SystemExit):  # asked for another scenario: one clear error
         replay(["--team", str(path), "--evaders", "2", "--out", str(tmp_path / "r")])
+
+
+def test_learner_crash_is_the_learners_own_seat(config):
+    """A learner that never turns crashes almost every episode; its Vicsek teammates
+    rarely do. The episode-level collision rate lies between the two seat rates."""
+    from hola_ray.policies import Vicsek
+
+    class Straight:
+        name = "straight"
+
+        def reset(self, mask=None):
+            pass
+
+        def act(self, obs):
+            return np.full(len(obs), 0.5)
+
+    means = seed_means(Straight(), [Vicsek(config)], config, 40, [0, 1])
+    assert set(means) >= {"learner_crash", "teammate_crash", "collision"}
+    assert np.all(means["learner_crash"] > 0.9)
+    assert np.all(means["teammate_crash"] < means["learner_crash"] / 3)
+    assert np.all(means["collision"] >= means["learner_crash"])
+
+
+def test_learners_of_one_file_name_are_told_apart_by_their_folder(learner_file, tmp_path, capsys):
+    for run in ("run-a", "run-b"):
+        (tmp_path / run).mkdir()
+        (tmp_path / run / "best.pt").write_bytes(learner_file.read_bytes())
+    small = ["--pool", "het", "--episodes", "2", "--seeds", "0", "--cell-episodes", "1", "--json"]
+    assert (
+        main([str(tmp_path / "run-a" / "best.pt"), str(tmp_path / "run-b" / "best.pt"), *small])
+        == 0
+    )
+    out = capsys.readouterr().out
+    last = json.loads(out.strip().splitlines()[-1])
+    assert set(last["runs"]) == {"run-a/best", "run-b/best"}
+    row = last["runs"]["run-a/best"]["het"]
+    assert 0 <= row["learner_crash"] <= 1 and 0 <= row["teammate_crash"] <= 1
+    assert "learner's own" in out
