@@ -68,3 +68,23 @@ def smoke_run(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
     ]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT)
     return out, done
+
+
+class _Straight:
+    """A pursuer that never turns (action 0.5): it flies on until it meets a wall."""
+
+    name = "straight"
+
+    def reset(self, mask=None):
+        pass
+
+    def act(self, obs):
+        import numpy as np
+
+        return np.full(len(obs), 0.5)
+
+
+@pytest.fixture()
+def straight():
+    """A pursuer policy that crashes in nearly every episode, in its own seat."""
+    return _Straight()

@@ -159,21 +159,12 @@ def test_replay_plays_the_scenario_a_learner_was_trained_in(tmp_path, capsys):
         replay(["--team", str(path), "--evaders", "2", "--out", str(tmp_path / "r")])
 
 
-def test_learner_crash_is_the_learners_own_seat(config):
+def test_learner_crash_is_the_learners_own_seat(config, straight):
     """A learner that never turns crashes almost every episode; its Vicsek teammates
     rarely do. The episode-level collision rate lies between the two seat rates."""
     from hola_ray.policies import Vicsek
 
-    class Straight:
-        name = "straight"
-
-        def reset(self, mask=None):
-            pass
-
-        def act(self, obs):
-            return np.full(len(obs), 0.5)
-
-    means = seed_means(Straight(), [Vicsek(config)], config, 40, [0, 1])
+    means = seed_means(straight, [Vicsek(config)], config, 40, [0, 1])
     assert set(means) >= {"learner_crash", "teammate_crash", "collision"}
     assert np.all(means["learner_crash"] > 0.9)
     assert np.all(means["teammate_crash"] < means["learner_crash"] / 3)

@@ -45,22 +45,10 @@ def test_table_rows_have_paper_figures():
     assert all(0 <= r["sr"] <= 1 and r["ael"] > 0 for r in rows)
 
 
-class Straight:
-    """Flies straight ahead (turn 0) until it meets a wall or an obstacle."""
-
-    name = "straight"
-
-    def reset(self, mask=None):
-        pass
-
-    def act(self, obs):
-        return np.full(len(obs), 0.5)
-
-
-def test_crashed_says_which_seat_collided(config):
+def test_crashed_says_which_seat_collided(config, straight):
     """A pursuer that never turns crashes in (nearly) every episode, in its own seat; the
     episode's collision flag is exactly 'some seat crashed'."""
-    result = rollout(config, [Straight(), Vicsek(config), Vicsek(config)], 60, seed=5)
+    result = rollout(config, [straight, Vicsek(config), Vicsek(config)], 60, seed=5)
     assert result.crashed.shape == (60, config.n_pursuers)
     assert np.array_equal(result.collision, result.crashed.any(axis=1))
     assert result.crashed[:, 0].mean() > 0.9
