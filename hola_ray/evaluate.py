@@ -384,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
         png, md = plot(results, out)
         print(f"wrote {png} and {md}")
     if args.json:
-        keep = (*(k for m in (*METRICS, *CRASHES) for k in (m, f"{m}_se")),)
+        keep = [k for m in (*METRICS, *CRASHES) for k in (m, f"{m}_se")]
         print(
             json.dumps(
                 {

@@ -182,8 +182,7 @@ def trial_state(run_dir: Path, generations: int) -> tuple[str, int | None]:
     last = run.last_completed()
     if last is None:
         return "new", None
-    done = last >= generations and run.learner_generation() == last
-    return ("done" if done else "partial"), last
+    return ("done" if run.finished(generations) else "partial"), last
 
 
 MARK = ".experiment"
@@ -327,6 +326,10 @@ class Runner:
         head = {"CPU": 1.0} | ({"GPU": oracle.gpus_per_learner} if oracle.gpus_per_learner else {})
         return [head] + [{"CPU": 1.0} for _ in range(oracle.env_runners)]
 
+    def needs(self, trial: str) -> dict[str, float]:
+        """A trial's CPUs and GPUs, all its bundles together."""
+        return {r: sum(b.get(r, 0.0) for b in self.bundles(trial)) for r in ("CPU", "GPU")}
+
     def parallel(self) -> int:
         """Trials started at once: the config's `parallel`, else all of them (their
         placement groups wait in Ray until CPUs are free, or an autoscaler adds nodes)."""
@@ -340,8 +343,7 @@ class Runner:
         have = ray.cluster_resources()
         width = len(self.exp.trials())
         for t in self.exp.trials():
-            for resource in ("CPU", "GPU"):
-                need = sum(b.get(resource, 0.0) for b in self.bundles(t))
+            for resource, need in self.needs(t).items():
                 if need > 0:
                     width = min(width, int(have.get(resource, 0.0) // need))
         return max(1, width)
@@ -370,8 +372,7 @@ class Runner:
 
         have = ray.cluster_resources()
         for t in trials:
-            for resource in ("CPU", "GPU"):
-                need = sum(b.get(resource, 0.0) for b in self.bundles(t))
+            for resource, need in self.needs(t).items():
                 if need > have.get(resource, 0.0):
                     self.say(
                         f"warning: {t} needs {need:g} {resource}(s) and the cluster has "

@@ -110,23 +110,20 @@ class DirectorySync:
         self.mirror = mirror
         self.seen: dict[str, tuple[int, int]] = {}
 
-    def _stamps(self) -> dict[str, tuple[int, int]]:
-        return {
-            rel: (path.stat().st_size, path.stat().st_mtime_ns)
-            for rel, path in _files(self.source).items()
-        }
+    def _stamps(self, files: dict[str, Path]) -> dict[str, tuple[int, int]]:
+        stats = {rel: path.stat() for rel, path in files.items()}
+        return {rel: (st.st_size, st.st_mtime_ns) for rel, st in stats.items()}
 
     def mark_seen(self) -> None:
         """Take what `source` holds now as already mirrored (it came from the mirror)."""
-        self.seen = self._stamps()
+        self.seen = self._stamps(_files(self.source))
 
     def __call__(self, *_: object) -> int:
         now = _files(self.source)
-        changed: dict[str, bytes] = {}
-        stamps = self._stamps()
-        for rel, path in now.items():
-            if self.seen.get(rel) != stamps.get(rel):
-                changed[rel] = path.read_bytes()
+        stamps = self._stamps(now)
+        changed = {
+            rel: path.read_bytes() for rel, path in now.items() if self.seen.get(rel) != stamps[rel]
+        }
         removed = sorted(set(self.seen) - set(now))
         if changed or removed:
             ray.get(self.mirror.write.remote(changed, removed))

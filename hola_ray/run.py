@@ -107,9 +107,9 @@ def finished(out: Path, config: RunConfig) -> bool:
     from hola_ray.population.rundir import RunDir
 
     run = RunDir(out)
-    last = run.last_completed()
-    if last is None or last < config.generations or run.learner_generation() != last:
+    if not run.finished(config.generations):
         return False
+    last = run.last_completed()
     print(
         f"{out} is finished: generation {last} of {config.generations} is done; train it "
         f"further with --resume {out} --generations {last + 1} (or more)",

@@ -286,7 +286,7 @@ class Trainer:
         at the top of its directory: best.pt and best.json from the best of the completed
         generations, then learner.pt and learner.json (the last written, so a learner.json
         of generation `last` says all of them are) from that generation's folder."""
-        if last < 1 or not (self.run.generation(last) / "learner.rllib.pt").is_file():
+        if last < 1 or not self.run.learner_state(last).is_file():
             return
         best = self.run.best_of_completed()
         if best is not None and (self.run.best_generation() != best or not self.run.best.is_file()):

@@ -41,6 +41,8 @@ from typing import Any
 
 import torch
 
+from hola_ray.policies.registry import GENERATION_STATE
+
 GEN_PREFIX = "gen_"
 
 
@@ -112,6 +114,12 @@ class RunDir:
     def save_learner_info(self, info: Mapping[str, Any]) -> None:
         _atomic_write_text(self.root / "learner.json", json.dumps(dict(info), indent=1))
 
+    def finished(self, generations: int) -> bool:
+        """Every generation up to `generations` is complete, and so are the files at the
+        top (learner.json, written last, is of the last one)."""
+        last = self.last_completed()
+        return last is not None and last >= generations and self.learner_generation() == last
+
     def learner_generation(self) -> int | None:
         """The generation whose learner `learner.pt` holds (learner.json), if any."""
         info = self.root / "learner.json"
@@ -154,7 +162,7 @@ class RunDir:
         their metrics (the earliest of equal scores); None before generation 1."""
         best, kept = None, None
         for g in self.completed():
-            if g < 1 or not (self.generation(g) / "learner.rllib.pt").is_file():
+            if g < 1 or not self.learner_state(g).is_file():
                 continue
             score = best_score(self.read_json(g, "metrics.json"))
             if kept is None or score > kept:
@@ -164,6 +172,10 @@ class RunDir:
     # ---- generations --------------------------------------------------------------------
     def generation(self, g: int) -> Path:
         return self.generations / f"{GEN_PREFIX}{g:04d}"
+
+    def learner_state(self, g: int) -> Path:
+        """Generation g's learner, its RLlib state (absent for pre-training)."""
+        return self.generation(g) / GENERATION_STATE
 
     def completed(self) -> list[int]:
         """Completed generations in order (leftover temporary folders are ignored)."""
@@ -196,7 +208,7 @@ class RunDir:
         for name, payload in files.items():
             (tmp / name).write_text(json.dumps(payload, indent=1))
         if learner_state is not None:
-            torch.save(dict(learner_state), tmp / "learner.rllib.pt")
+            torch.save(dict(learner_state), tmp / GENERATION_STATE)
         _fsync_dir(tmp)
         os.rename(tmp, final)
         _fsync_dir(self.generations)
@@ -206,7 +218,7 @@ class RunDir:
         return json.loads((self.generation(g) / name).read_text())
 
     def load_learner_state(self, g: int) -> dict[str, Any] | None:
-        path = self.generation(g) / "learner.rllib.pt"
+        path = self.learner_state(g)
         if not path.exists():
             return None
         return torch.load(path, map_location="cpu", weights_only=False)
