@@ -29,6 +29,7 @@ episodes are played by members trained for two.
 from __future__ import annotations
 
 import argparse
+import copy
 import dataclasses
 import hashlib
 import json
@@ -123,6 +124,14 @@ class ScenarioAdapter(Policy):
 
     def reset(self, mask: np.ndarray | None = None) -> None:
         self.policy.reset(mask)
+
+    def twin(self) -> Policy:
+        inner = self.policy.twin()
+        if inner is self.policy:
+            return self
+        other = copy.copy(self)
+        other.policy = inner
+        return other
 
 
 # ---- manifests and hashes -------------------------------------------------------------------
@@ -238,9 +247,10 @@ def train_member(member: Member, progress: bool = True) -> tuple[Path, dict[str,
 
         from hola_ray.methods.hola import Trainer
         from hola_ray.population.coordinator import NAMESPACE
+        from hola_ray.progress import init_local_ray
 
         if not ray.is_initialized():
-            ray.init(address="local", namespace=NAMESPACE, include_dashboard=False)
+            init_local_ray(namespace=NAMESPACE)
         Trainer(config, out, progress=progress).fit()
         best = json.loads((out / "best.json").read_text())
         facts = {"generation": best["generation"], "env_steps": best["env_steps"]}
@@ -365,4 +375,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    from hola_ray.progress import fixed_hash_seed
+
+    fixed_hash_seed("hola_ray.pools", sys.argv[1:])  # reproducible builds, as `run`
     sys.exit(main())

@@ -74,6 +74,17 @@ RAY_RUNTIME_ENV = {
 iterates sets of strings in one order (see `fixed_hash_seed`)."""
 
 
+def init_local_ray(**options: Any) -> None:
+    """A local Ray for a command of this project: no dashboard unless asked, and every
+    worker with the fixed hash seed and quiet loggers (`RAY_RUNTIME_ENV`)."""
+    import ray
+
+    ray.init(
+        address="local",
+        **{"include_dashboard": False, "runtime_env": RAY_RUNTIME_ENV, **options},
+    )
+
+
 def fixed_hash_seed(module: str, argv: list[str]) -> None:
     """Re-run this command with PYTHONHASHSEED=0 unless it is set. RLlib iterates sets of
     module ids in places (the learner's per-module work among them), and a set of strings

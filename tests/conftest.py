@@ -35,12 +35,15 @@ def ray_session():
     """One local Ray per test module (start-up and per-actor torch imports cost seconds)."""
     import ray
 
+    from hola_ray.progress import RAY_RUNTIME_ENV
+
     ray.init(
         address="local",
         num_cpus=2,
         include_dashboard=False,
         namespace="hola_ray_tests",
         log_to_driver=False,
+        runtime_env=RAY_RUNTIME_ENV,  # as the commands: workers share the hash seed
     )
     yield ray
     ray.shutdown()

@@ -11,7 +11,7 @@ from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.evaluation.stats import episode_seeds as derive_seeds
 from hola_ray.evaluation.stats import mean_and_se
-from hola_ray.policies.base import Policy
+from hola_ray.policies.base import Policy, seated
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,8 @@ def rollout(
     """Play `episodes` episodes to their end and collect their metrics.
 
     policies: with no `assignment`, one policy per pursuer slot (len == n_pursuers);
-        otherwise the candidates that `assignment` indexes.
+        otherwise the candidates that `assignment` indexes. An object listed more than once
+        plays each listing as a separate copy (`seated`): per-row state is never shared.
     assignment: [episodes, n_pursuers] ints, the policy of each slot in each episode.
     seed: the run seed; episode i always gets the same derived seed for a given run seed.
     batch_size: most episodes simulated at once.
@@ -59,6 +60,7 @@ def rollout(
         (to replay the same episodes with different teams).
     """
     n_p = config.n_pursuers
+    policies = seated(policies)
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     if assignment is None:

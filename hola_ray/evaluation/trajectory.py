@@ -10,7 +10,7 @@ import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
-from hola_ray.policies.base import Policy
+from hola_ray.policies.base import Policy, seated
 
 
 @dataclass(frozen=True)
@@ -44,12 +44,10 @@ def record(
         raise ValueError(f"team must hold {config.n_pursuers} policies, got {len(team)}")
     env = BatchedPursuit(config, 1)
     obs = env.reset(seeds=[seed], initial_state={0: initial_state} if initial_state else None)
-    # one call per policy over all of its seats, as in `rollout`: a policy with per-episode
-    # state (D3QN-G holds its pair) is bound to its rows
-    seats = {id(p): [i for i, q in enumerate(team) if q is p] for p in team}
-    players = {id(p): p for p in team}
-    for key, policy in players.items():
-        policy.reset(np.ones(len(seats[key]), dtype=bool))
+    # one player per seat, as in `rollout`: an object in several seats plays as copies
+    players = seated(team)
+    for policy in players:
+        policy.reset(np.ones(1, dtype=bool))
     frames: dict[str, list[np.ndarray]] = {
         key: []
         for key in (
@@ -71,8 +69,8 @@ def record(
     snapshot()
     actions = np.empty((1, config.n_pursuers))
     while not env.done[0]:
-        for key, policy in players.items():
-            actions[0, seats[key]] = policy.act(obs[0, seats[key]])
+        for seat, policy in enumerate(players):
+            actions[0, seat] = policy.act(obs[0, seat : seat + 1])[0]
         alive_before = env.evader_alive[0].copy()
         result = env.step(actions)
         obs = result.obs

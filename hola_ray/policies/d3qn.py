@@ -22,6 +22,7 @@ instead. The export is a plain dict played by `D3QNG` without RLlib.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
 from typing import Any
 
@@ -135,6 +136,13 @@ class D3QNG(Policy):
         """The Q-network's greedy pair for each observation row."""
         state = dacoop_state(obs, self.layout, self.config.unobserved_distance)
         return self.q(torch.from_numpy(state)).argmax(dim=-1).numpy()
+
+    def twin(self) -> D3QNG:
+        """The same network and pair actor, with pairs and ages of its own."""
+        other = copy.copy(self)
+        other._pair = np.zeros(0, dtype=np.int64)
+        other._age = np.zeros(0, dtype=np.int64)
+        return other
 
     def reset(self, mask: np.ndarray | None = None) -> None:
         """Rows in mask pick a fresh pair at their next step (binds len(mask) rows)."""

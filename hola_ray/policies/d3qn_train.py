@@ -23,7 +23,7 @@ import yaml
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 from ray.tune.registry import register_env
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.env.config import PursuitConfig, load_yaml
 from hola_ray.env.layout import ObsLayout
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.policies.d3qn import D3QNG, FORMAT, PairActor, dacoop_state, state_dim
@@ -61,6 +61,21 @@ class D3QNSettings:
     last network is exported"""
     validate_episodes: int = 60
     """episodes of a validation: three copies vs the run's evaders, the training scenario"""
+    select: str = "best"
+    """which validated network is exported: `best` (highest validation success, then
+    lowest collision) or `nearest` (validation success nearest `target_success`, then
+    lowest collision, then the earlier one)"""
+    target_success: float | None = None
+    """the validation success `select: nearest` aims at (a pool member's paper Table II
+    figure: the pool should be as strong as the paper's, not stronger)"""
+
+    def __post_init__(self) -> None:
+        if self.select not in ("best", "nearest"):
+            raise ValueError(f"d3qn.select must be best or nearest, got {self.select!r}")
+        if self.select == "nearest" and not (
+            isinstance(self.target_success, int | float) and 0 <= self.target_success <= 1
+        ):
+            raise ValueError("d3qn.select: nearest needs d3qn.target_success in [0, 1]")
 
 
 @dataclass(frozen=True)
@@ -73,7 +88,7 @@ class D3QNRun:
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> D3QNRun:
-        raw = yaml.safe_load(Path(path).read_text()) or {}
+        raw = load_yaml(path) or {}
         unknown = set(raw) - {"kind", "seed", "env", "d3qn"}
         if unknown or raw.get("kind") != "d3qn":
             raise ValueError(f"{path}: a D3QN-G config has kind: d3qn, seed, env, d3qn only")
@@ -203,6 +218,14 @@ def algorithm_config(run: D3QNRun):
     )
 
 
+def build(run: D3QNRun):
+    """RLlib's DQN for `run`, every random draw seeded from the run's seed: RLlib seeds its
+    env runners and learner, but its replay buffer draws from an unseeded generator."""
+    algo = algorithm_config(run).build_algo()
+    algo.local_replay_buffer.rng = np.random.default_rng(run.seed)
+    return algo
+
+
 def export_from_rllib(state: dict[str, Any], run: D3QNRun) -> dict[str, Any]:
     """The plain-torch export (`D3QNG`) of the DQN module's state."""
 
@@ -240,8 +263,8 @@ def validate(export: dict[str, Any], run: D3QNRun) -> tuple[float, float]:
     """The greedy network's success and collision rates, three copies in the training
     scenario. DACOOP-A saves its network every 500 episodes and validates the last in
     `validation.py`; here the greedy network of a short run swings between validations
-    (70 % and 97 % Table II success for two runs of one config), so the best validated
-    one is exported."""
+    (70 % and 97 % Table II success for two runs of one config), so the exported network
+    is chosen among the validated ones (`choose`). Each seat plays its own pair state."""
     from hola_ray.evaluation.rollout import rollout
 
     policy = D3QNG(run.env, export)
@@ -254,11 +277,36 @@ def validate(export: dict[str, Any], run: D3QNRun) -> tuple[float, float]:
     return round(float(result.success.mean()), 4), round(float(result.collision.mean()), 4)
 
 
+@dataclass(frozen=True)
+class Validated:
+    """One validation of the greedy network during training."""
+
+    env_steps: int
+    success: float
+    collision: float
+
+
+def choose(validated: list[Validated], settings: D3QNSettings) -> int:
+    """The index of the validated network to export, by `settings.select` (see there)."""
+    if not validated:
+        raise ValueError("no validated network to choose from")
+    if settings.select == "best":
+        keys = [(-v.success, v.collision, k) for k, v in enumerate(validated)]
+    else:
+        target = float(settings.target_success)
+        keys = [
+            (round(abs(v.success - target), 6), v.collision, k) for k, v in enumerate(validated)
+        ]
+    return min(keys)[-1]
+
+
 def train_d3qn(
     config_path: str | Path, out: str | Path, progress: bool = True
 ) -> tuple[Path, dict[str, Any]]:
     """Train (or reuse a finished) D3QN-G run; its export file and what the training did."""
     import ray
+
+    from hola_ray.progress import init_local_ray
 
     out = Path(out)
     done = out / "done.json"
@@ -268,13 +316,14 @@ def train_d3qn(
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.yaml").write_text(yaml.safe_dump(run.to_dict(), sort_keys=False))
     if not ray.is_initialized():
-        ray.init(address="local", include_dashboard=False)
-    algo = algorithm_config(run).build_algo()
+        init_local_ray()
+    algo = build(run)
     start = time.perf_counter()
     steps = 0
     rows = []
     every = run.d3qn.validate_every
-    best: tuple[tuple[float, float], dict[str, Any], int] | None = None
+    validated: list[Validated] = []
+    exports: list[dict[str, Any]] = []
     try:
         while steps < run.d3qn.env_steps:
             result = algo.train()
@@ -292,8 +341,8 @@ def train_d3qn(
                 export = export_from_rllib(algo.learner_group.get_weights([MODULE])[MODULE], run)
                 success, collision = validate(export, run)
                 row["validation_success"], row["validation_collision"] = success, collision
-                if best is None or (success, -collision) > best[0]:
-                    best = ((success, -collision), export, steps)
+                validated.append(Validated(steps, success, collision))
+                exports.append(export)
                 if progress:
                     print(
                         f"d3qn {out.name}: validation at {steps:,} env steps: success "
@@ -308,11 +357,12 @@ def train_d3qn(
                     f"{row['wall_s']:.0f} s",
                     flush=True,
                 )
-        if best is None:
+        if not validated:
             export = export_from_rllib(algo.learner_group.get_weights([MODULE])[MODULE], run)
-            chosen = steps
+            chosen: Validated | None = None
         else:
-            _, export, chosen = best
+            k = choose(validated, run.d3qn)
+            export, chosen = exports[k], validated[k]
     finally:
         algo.stop()
     with open(out / "progress.csv", "w", newline="") as f:
@@ -322,9 +372,17 @@ def train_d3qn(
     torch.save(export, out / "export.pt")
     facts = {
         "env_steps": steps,
-        "exported_at_env_steps": chosen,
+        "exported_at_env_steps": steps if chosen is None else chosen.env_steps,
         "wall_s": round(time.perf_counter() - start, 1),
     }
+    if chosen is not None:
+        facts |= {
+            "select": run.d3qn.select,
+            "target_success": run.d3qn.target_success,
+            "validation_success": chosen.success,
+            "validation_collision": chosen.collision,
+            "validation_episodes": run.d3qn.validate_episodes,
+        }
     done.write_text(json.dumps(facts))
     return out / "export.pt", facts
 
@@ -339,4 +397,9 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
+    import sys
+
+    from hola_ray.progress import fixed_hash_seed
+
+    fixed_hash_seed("hola_ray.policies.d3qn_train", sys.argv[1:])
     main()

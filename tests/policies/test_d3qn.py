@@ -63,7 +63,7 @@ def test_a_pair_is_played_by_apf_a_and_greedy_takes_over_once_the_first_evader_i
 
 @pytest.fixture(scope="module")
 def dqn(ray_session, tmp_path_factory):
-    from hola_ray.policies.d3qn_train import D3QNRun, D3QNSettings, algorithm_config
+    from hola_ray.policies.d3qn_train import D3QNRun, D3QNSettings, build
 
     run = D3QNRun(
         seed=3,
@@ -72,10 +72,28 @@ def dqn(ray_session, tmp_path_factory):
             env_steps=300, learning_starts=50, hidden=(16, 8), head_hidden=(8,), envs=2
         ),
     )
-    algo = algorithm_config(run).build_algo()
+    algo = build(run)
     algo.train()
     yield run, algo
     algo.stop()
+
+
+def test_training_is_reproducible(dqn):
+    """The same run trains the same network: RLlib seeds its env runner and learner, the
+    replay buffer's draws are seeded by `build`, and workers share the hash seed."""
+    from hola_ray.policies.d3qn_train import MODULE, build
+
+    run, algo = dqn
+    again = build(run)
+    try:
+        again.train()
+        first = algo.learner_group.get_weights([MODULE])[MODULE]
+        second = again.learner_group.get_weights([MODULE])[MODULE]
+    finally:
+        again.stop()
+    assert first.keys() == second.keys()
+    for key in first:
+        np.testing.assert_array_equal(np.asarray(first[key]), np.asarray(second[key]), key)
 
 
 def test_the_export_plays_the_dqn_modules_greedy_pair(dqn):
@@ -211,3 +229,24 @@ def test_training_exports_the_best_validated_network(ray_session, tmp_path):
         float(best["validation_collision"]),
     )
     assert train_d3qn(config, tmp_path / "run")[1] == facts  # a finished run is reused
+
+
+def test_the_export_is_chosen_by_the_rule_written_in_the_config():
+    from hola_ray.policies.d3qn_train import D3QNSettings, Validated, choose
+
+    runs = [
+        Validated(1000, 0.40, 0.50),
+        Validated(2000, 0.76, 0.20),
+        Validated(3000, 0.84, 0.10),  # as near 0.80 as 0.76, fewer collisions
+        Validated(4000, 0.97, 0.05),
+        Validated(5000, 0.97, 0.02),
+    ]
+    assert choose(runs, D3QNSettings()) == 4  # best: highest success, then fewer collisions
+    nearest = D3QNSettings(select="nearest", target_success=0.80)
+    assert choose(runs, nearest) == 2
+    assert choose(runs[:2], nearest) == 1
+    assert choose(runs, D3QNSettings(select="nearest", target_success=0.3)) == 0
+    with pytest.raises(ValueError, match="needs d3qn.target_success"):
+        D3QNSettings(select="nearest")
+    with pytest.raises(ValueError, match="best or nearest"):
+        D3QNSettings(select="latest")
