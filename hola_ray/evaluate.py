@@ -6,8 +6,13 @@
 
 Per learner and pool, `--episodes` episodes per seed: the learner sits in a random seat
 and its n_p − 1 teammates are drawn from the pool, uniformly with replacement, per episode.
-Success, collision and length are averaged per seed; the figures are their mean over
-seeds, the standard error over seeds and a 95 % bootstrap interval over seeds.
+The figures are means over every episode: success, collision (any seat crashed), length,
+AT-Drone's `steps_success` (mean length over successful episodes: AST) and `reward` (mean
+per-pursuer return: REW), and whose crashes (`learner_crash`: the learner's own seat;
+`teammate_crash`: the share of teammate seats). Standard errors and 95 % intervals come
+from a bootstrap over episodes resampled within each partner combination
+(`hola_ray.evaluation.compare`). Every learner plays the same episodes (the draws depend on
+the seed only), so two learners' figures are paired.
 
 The normalised score follows ZSC-Eval's BR-Prox: for every combination of pool members in
 the other seats and every seat, R(ref) is the best mean team return that any pool member
@@ -22,15 +27,17 @@ paper's evaluation is 3 vs 2; every learner given must share it) and the arena's
 rewards (the team return that the score compares; a run's own reward shaping is not used).
 Pool members trained for more evaders play fewer through `ScenarioAdapter`.
 
-A learner is a run directory (its final `learner.pt`) or an exported policy file.
-`--partner MODULE:CALLABLE` (repeatable; MODULE a module name or a path to a .py file)
-adds a teammate of your own: the callable gets the `PursuitConfig` and returns an object
-with `act(obs) → actions` and `reset(mask)`; the partners form a pool named `partners`.
+A learner is a run directory (its final `learner.pt`), a generation folder or a policy
+file: a learned pursuer's export or a D3QN-G export (which reads the first evader and
+plays any number). `--partner MODULE:CALLABLE` (repeatable; MODULE a module name or a path
+to a .py file) adds a teammate of your own: the callable gets the `PursuitConfig` and
+returns an object with `act(obs) → actions [N]` and `reset(mask)`; the partners form a pool
+named `partners`. Every bad input (a missing or unreadable file, an unknown pool, a partner
+that cannot be made or acts wrongly) is one line on stderr and exit code 2.
 """
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import importlib.util
 import itertools
@@ -44,16 +51,15 @@ from typing import Any
 
 import numpy as np
 
+from hola_ray.cli import OneLineParser, fail
 from hola_ray.env.config import PursuitConfig
-from hola_ray.evaluation.rollout import rollout
+from hola_ray.env.core import BatchedPursuit
+from hola_ray.evaluation.compare import FIELDS, METRICS, compare
+from hola_ray.evaluation.rollout import PolicyError, rollout
 from hola_ray.evaluation.stats import episode_seeds
+from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
 from hola_ray.policies.registry import load_export, load_policy, policy_file
-from hola_ray.pools import POOLS, PoolError, load_pool
-
-METRICS = ("success", "collision", "length")
-CRASHES = ("learner_crash", "teammate_crash")
-"""whose collisions: the share of episodes in which the learner's own seat collided, and
-the share of teammate seats that collided (`collision` counts an episode with any)"""
+from hola_ray.pools import POOLS, PoolError, load_pool, pool_dir, sha256
 
 
 class EvaluationError(RuntimeError):
@@ -61,10 +67,13 @@ class EvaluationError(RuntimeError):
 
 
 # ---- who plays ------------------------------------------------------------------------------
-def learner_evaders(path: Path, config: PursuitConfig) -> int:
+def learner_evaders(path: Path, config: PursuitConfig) -> int | None:
     """How many evaders a learner was trained against (its run's config, or the export's
-    input size): the evaluation plays that scenario."""
+    input size): the evaluation plays that scenario. None for a D3QN-G export, which reads
+    the first evader only and plays any number."""
     path = Path(path)
+    if not path.exists():
+        raise EvaluationError(f"{path}: no such file or directory")
     if path.is_dir() and (path / "config.yaml").is_file():
         import yaml
 
@@ -75,6 +84,10 @@ def learner_evaders(path: Path, config: PursuitConfig) -> int:
         export = load_export(path)
     except ValueError as err:
         raise EvaluationError(str(err)) from err
+    if export.get("format") == D3QN_FORMAT:
+        return None
+    if not isinstance(export.get("weights"), list | tuple) or not export["weights"]:
+        raise EvaluationError(f"{file}: not a policy export (no weights)")
     if export.get("scenario"):
         return int(export["scenario"].get("n_evaders", config.n_evaders))
     inputs = export["weights"][0].shape[1] - len((export.get("features") or {}).get("indices", ()))
@@ -91,6 +104,21 @@ def load_learner(path: Path, config: PursuitConfig) -> tuple[str, Any]:
     except (ValueError, KeyError, RuntimeError) as err:
         raise EvaluationError(f"{policy_file(path)}: cannot load it as a learner: {err}") from err
     return policy.name, policy
+
+
+def probe(policy: Any, name: str, config: PursuitConfig) -> None:
+    """Play `policy` on a few real observations: its actions must be a finite [N] array."""
+    env = BatchedPursuit(config, 4)
+    obs = env.reset(seeds=np.arange(4)).reshape(-1, config.obs_dim)
+    try:
+        policy.reset(np.ones(len(obs), dtype=bool))
+        actions = policy.act(obs)
+    except Exception as err:  # noqa: BLE001 - a user's code: any failure is one line
+        raise EvaluationError(f"{name}: act failed on {obs.shape} observations: {err!r}") from err
+    try:
+        PolicyError.check(name, actions, len(obs))
+    except PolicyError as err:
+        raise EvaluationError(str(err)) from err
 
 
 def load_partner(spec: str, config: PursuitConfig) -> tuple[str, Any]:
@@ -110,13 +138,19 @@ def load_partner(spec: str, config: PursuitConfig) -> tuple[str, Any]:
             module = importlib.import_module(module_name)
     except ImportError as err:
         raise EvaluationError(f"--partner {spec}: cannot import {module_name}: {err}") from err
+    except Exception as err:  # noqa: BLE001 - the module's own code raised on import
+        raise EvaluationError(f"--partner {spec}: importing {module_name} failed: {err!r}") from err
     factory = getattr(module, attr, None)
     if not callable(factory):
         raise EvaluationError(f"--partner {spec}: {module_name} has no callable {attr}")
-    partner = factory(config)
+    try:
+        partner = factory(config)
+    except Exception as err:  # noqa: BLE001 - a user's factory: any failure is one line
+        raise EvaluationError(f"--partner {spec}: {attr}(config) raised {err!r}") from err
     for method in ("act", "reset"):
         if not callable(getattr(partner, method, None)):
             raise EvaluationError(f"--partner {spec}: what {attr} returns has no {method}()")
+    probe(partner, f"--partner {spec}", config)
     return getattr(partner, "name", attr), partner
 
 
@@ -143,30 +177,36 @@ def draw_teams(rng: np.random.Generator, episodes: int, n_p: int, members: int) 
     return teams
 
 
-def seed_means(
+def partner_combinations(teams: np.ndarray, members: int) -> np.ndarray:
+    """[E] an id per episode of the members beside the learner, as a multiset (seat order
+    and the learner's seat left out): the bootstrap's strata."""
+    mates = np.sort(teams[teams != 0].reshape(teams.shape[0], teams.shape[1] - 1), axis=1)
+    base = members + 1
+    return (mates * base ** np.arange(mates.shape[1])[::-1]).sum(axis=1)
+
+
+def play(
     learner, members: list, config: PursuitConfig, episodes: int, seeds: Sequence[int]
 ) -> dict[str, np.ndarray]:
-    """Per-seed means [S] of success, collision and length with drawn teams, and of who
-    collided (`CRASHES`)."""
-    out: dict[str, list[float]] = {m: [] for m in (*METRICS, *CRASHES)}
+    """Every episode's record ([episodes · seeds] per field of `FIELDS`, and `eval_seed`):
+    per seed, `episodes` episodes with drawn teams."""
+    out: dict[str, list[np.ndarray]] = {m: [] for m in (*FIELDS, "eval_seed")}
+    n_p = config.n_pursuers
     for s in seeds:
         rng = np.random.default_rng(np.random.SeedSequence([int(s), 7]))
-        teams = draw_teams(rng, episodes, config.n_pursuers, len(members))
+        teams = draw_teams(rng, episodes, n_p, len(members))
         result = rollout(config, [learner, *members], episodes, assignment=teams, seed=int(s))
-        for m in METRICS:
-            out[m].append(float(np.mean(getattr(result, m))))
         learner_seat = teams == 0  # the learner is candidate 0, in one seat per episode
-        out["learner_crash"].append(float(result.crashed[learner_seat].mean()))
-        out["teammate_crash"].append(float(result.crashed[~learner_seat].mean()))
-    return {m: np.asarray(v) for m, v in out.items()}
-
-
-def bootstrap_ci(values: np.ndarray, draws: int = 10_000, seed: int = 0) -> tuple[float, float]:
-    """95 % percentile bootstrap interval of the mean over the given per-seed values."""
-    rng = np.random.default_rng(seed)
-    idx = rng.integers(0, values.size, size=(draws, values.size))
-    means = values[idx].mean(axis=1)
-    return float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
+        out["success"].append(result.success.astype(np.float64))
+        out["collision"].append(result.collision.astype(np.float64))
+        out["length"].append(result.length.astype(np.float64))
+        out["reward"].append(result.team_return / n_p)
+        out["learner_crash"].append(result.crashed[learner_seat].astype(np.float64))
+        mates = result.crashed[~learner_seat].reshape(episodes, n_p - 1)
+        out["teammate_crash"].append(mates.mean(axis=1))
+        out["stratum"].append(partner_combinations(teams, len(members)))
+        out["eval_seed"].append(np.full(episodes, int(s)))
+    return {m: np.concatenate(v) for m, v in out.items()}
 
 
 # ---- BR-Prox score --------------------------------------------------------------------------
@@ -241,21 +281,36 @@ def evaluate_learner(
 ) -> dict[str, Any]:
     """One learner's figures against one pool (`members`), whose reference returns
     (`cell_returns(members, members, …)`) are given: computed once for every learner."""
-    per_seed = seed_means(learner, members, config, episodes, seeds)
+    played = play(learner, members, config, episodes, seeds)
     mine = cell_returns([learner], members, config, cell_episodes, seeds)[..., 0]
     scores, dropped = br_prox(reference, mine)
+    intervals = compare({"learner": [played]})[0]["learner"]
     row: dict[str, Any] = {}
-    for m in (*METRICS, *CRASHES):
-        v = per_seed[m]
-        row[m] = float(v.mean())
-        row[f"{m}_se"] = float(v.std(ddof=1) / np.sqrt(v.size)) if v.size > 1 else 0.0
-        row[f"{m}_ci95"] = list(bootstrap_ci(v))
-        row[f"{m}_per_seed"] = [round(float(x), 4) for x in v]
+    for m in METRICS:
+        row[m] = intervals[m]["mean"]
+        row[f"{m}_se"] = intervals[m]["se"]
+        row[f"{m}_ci95"] = intervals[m]["ci95"]
+        if m != "steps_success":
+            row[f"{m}_per_seed"] = [
+                round(float(played[m][played["eval_seed"] == s].mean()), 4) for s in seeds
+            ]
     row["score_iqm"] = iqm(scores)
     row["score_cells"] = int(scores.size)
     row["score_cells_without_reference"] = dropped
     row["episodes"] = episodes * len(seeds)
+    row["per_episode"] = {
+        m: [round(float(x), 4) for x in played[m]]
+        if m in ("reward", "teammate_crash")
+        else [int(x) for x in played[m]]
+        for m in (*FIELDS, "eval_seed")
+    }
     return row
+
+
+def pool_fingerprints(names: Sequence[str]) -> dict[str, str]:
+    """Pool name → the sha256 of its manifest (which holds every member file's sha256): an
+    evaluation cached under one fingerprint is stale once the pool is rebuilt."""
+    return {name: sha256(pool_dir(name) / "manifest.json") for name in names}
 
 
 def evaluate(
@@ -285,15 +340,52 @@ def evaluate(
                 f"[{pool}] {name}: success {row['success']:.1%} ± {row['success_se']:.1%}, "
                 f"collision {row['collision']:.1%} ± {row['collision_se']:.1%} (learner's own "
                 f"{row['learner_crash']:.1%}, a teammate's {row['teammate_crash']:.1%}), length "
-                f"{row['length']:.0f} ± {row['length_se']:.0f}, score IQM {row['score_iqm']:.3f}"
-                f" ({time.perf_counter() - start:.0f} s)"
+                f"{row['length']:.0f} ± {row['length_se']:.0f} (successful episodes "
+                f"{row['steps_success']:.0f}), reward {row['reward']:.1f}, score IQM "
+                f"{row['score_iqm']:.3f} ({time.perf_counter() - start:.0f} s)"
             )
     return out
 
 
+PANELS = {
+    "success": "success rate",
+    "collision": "collision rate",
+    "length": "episode length",
+    "steps_success": "steps to success (AST)",
+    "reward": "per-pursuer return (REW)",
+}
+"""Fig. 4's three columns, then AT-Drone's two"""
+
+
+def table_lines(results: Mapping[str, Mapping[str, Mapping[str, Any]]], first: str) -> list[str]:
+    """A markdown table of every learner's (method's) figures with their 95 % intervals."""
+
+    def cell(r: Mapping[str, Any], m: str) -> str:
+        value, (lo, hi) = r[m], r.get(f"{m}_ci95", (float("nan"),) * 2)
+        if m in ("length", "steps_success", "reward"):
+            return f"{value:.1f} [{lo:.1f}, {hi:.1f}]"
+        return f"{value:.1%} [{lo:.1%}, {hi:.1%}]"
+
+    pool_names = sorted({p for r in results.values() for p in r}, key=lambda p: (p != "hot", p))
+    lines = [
+        f"| {first} | pool | success | collision | length | steps to success | reward "
+        "| learner crashed | score (IQM) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for n, by_pool in results.items():
+        for pool in pool_names:
+            r = by_pool.get(pool)
+            if r:
+                cells = " | ".join(cell(r, m) for m in (*PANELS, "learner_crash") if m in r)
+                score = r.get("score_iqm", r.get("score", float("nan")))
+                lines.append(f"| {n} | {pool} | {cells} | {score:.3f} |")
+    return lines
+
+
 def plot(results: Mapping[str, Mapping[str, Mapping[str, Any]]], out: Path) -> tuple[Path, Path]:
-    """Fig. 4's layout: a row per pool, columns success, collision and length, one bar per
-    learner with standard-error bars over seeds; and the same figures as a markdown table."""
+    """Fig. 4's layout (a row per pool; success, collision, length) and AT-Drone's steps to
+    success and reward, one bar per learner with its 95 % interval; and the same figures
+    as a markdown table (`evaluation.md`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -301,47 +393,38 @@ def plot(results: Mapping[str, Mapping[str, Mapping[str, Any]]], out: Path) -> t
 
     names = list(results)
     pool_names = sorted({p for r in results.values() for p in r}, key=lambda p: (p != "hot", p))
-    fig, axes = plt.subplots(len(pool_names), 3, figsize=(11, 3.2 * len(pool_names)), squeeze=False)
-    titles = {"success": "success rate", "collision": "collision rate", "length": "episode length"}
-    labels = {"hot": "HoT (PPO pool)", "het": "HeT (heterogeneous pool)"}
+    fig, axes = plt.subplots(
+        len(pool_names), len(PANELS), figsize=(17, 3.2 * len(pool_names)), squeeze=False
+    )
+    labels = {"hot": "HoT", "het": "HeT"}
     colors = plt.cm.tab10(np.arange(len(names)) % 10)
     for i, pool in enumerate(pool_names):
-        for j, m in enumerate(METRICS):
+        for j, (m, title) in enumerate(PANELS.items()):
             ax = axes[i, j]
-            values = [results[n].get(pool, {}).get(m, np.nan) for n in names]
-            errors = [results[n].get(pool, {}).get(f"{m}_se", 0.0) for n in names]
+            rows = [results[n].get(pool, {}) for n in names]
+            values = np.array([r.get(m, np.nan) for r in rows], dtype=np.float64)
+            bounds = np.array(
+                [r.get(f"{m}_ci95", (np.nan, np.nan)) for r in rows], dtype=np.float64
+            ).reshape(len(names), 2)
+            errors = np.nan_to_num(np.abs(bounds - values[:, None]).T)
             ax.bar(range(len(names)), values, yerr=errors, color=colors, capsize=4)
             ax.set_xticks(range(len(names)), names, rotation=20, ha="right", fontsize=8)
-            ax.set_title(f"{labels.get(pool, pool)}: {titles[m]}", fontsize=9)
-            if m != "length":
+            ax.set_title(f"{labels.get(pool, pool)}: {title}", fontsize=9)
+            if m in ("success", "collision"):
                 ax.set_ylim(0, 1)
+    fig.suptitle("bars: mean; whiskers: 95 % interval (stratified bootstrap)", fontsize=9)
     fig.tight_layout()
     out.mkdir(parents=True, exist_ok=True)
     png = out / "evaluation.png"
-    fig.savefig(png, dpi=120)
+    fig.savefig(png, dpi=110)
     plt.close(fig)
-    lines = [
-        "| learner | pool | success | collision | length | score (IQM) |",
-        "| --- | --- | --- | --- | --- | --- |",
-    ]
-    for n in names:
-        for pool in pool_names:
-            r = results[n].get(pool)
-            if r:
-                lines.append(
-                    f"| {n} | {pool} | {r['success']:.1%} ± {r['success_se']:.1%} | "
-                    f"{r['collision']:.1%} ± {r['collision_se']:.1%} | "
-                    f"{r['length']:.1f} ± {r['length_se']:.1f} | {r['score_iqm']:.3f} |"
-                )
     md = out / "evaluation.md"
-    md.write_text("\n".join(lines) + "\n")
+    md.write_text("\n".join(table_lines(results, "learner")) + "\n")
     return png, md
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="python -m hola_ray.evaluate", description=__doc__.split("\n\n")[0]
-    )
+    parser = OneLineParser(prog="python -m hola_ray.evaluate", description=__doc__.split("\n\n")[0])
     parser.add_argument("learners", nargs="+", type=Path, help="run directories or policy files")
     parser.add_argument("--pool", action="append", help="hot, het or a pool folder (default: both)")
     parser.add_argument("--partner", action="append", default=[], help="MODULE:CALLABLE")
@@ -352,14 +435,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="where --plot writes (default runs/evaluation-…)")
     parser.add_argument("--json", action="store_true", help="last line: the figures as JSON")
     args = parser.parse_args(argv)
+    if args.episodes < 1 or args.cell_episodes < 1:
+        return fail("--episodes and --cell-episodes must be at least 1")
     try:
-        evaders = {learner_evaders(p, PursuitConfig()) for p in args.learners}
+        evaders = {learner_evaders(p, PursuitConfig()) for p in args.learners} - {None}
         if len(evaders) > 1:
             raise EvaluationError(
                 f"the learners were trained against different numbers of evaders "
                 f"({sorted(evaders)}); evaluate them separately"
             )
-        config = PursuitConfig(n_evaders=evaders.pop())
+        # D3QN-G learners play any number of evaders: the others' scenario, else the paper's
+        config = PursuitConfig(n_evaders=evaders.pop()) if evaders else PursuitConfig()
         names = args.pool if args.pool else ([] if args.partner else list(POOLS))
         members = pools(names, args.partner, config)
         loaded = [load_learner(p, config) for p in args.learners]
@@ -374,23 +460,22 @@ def main(argv: list[str] | None = None) -> int:
                 f"two learners share a name: {', '.join(map(str, args.learners))}"
             )
         learners = {name: policy for name, (_, policy) in zip(called, loaded, strict=True)}
-    except EvaluationError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    print(f"scenario: {config.n_pursuers} pursuers vs {config.n_evaders} evader(s)", flush=True)
-    results = evaluate(learners, members, config, args.episodes, args.seeds, args.cell_episodes)
+        print(f"scenario: {config.n_pursuers} pursuers vs {config.n_evaders} evader(s)", flush=True)
+        results = evaluate(learners, members, config, args.episodes, args.seeds, args.cell_episodes)
+    except (EvaluationError, PolicyError) as err:
+        return fail(str(err))
     if args.plot:
         out = args.out or Path("runs") / time.strftime("evaluation-%Y%m%d-%H%M%S")
         png, md = plot(results, out)
         print(f"wrote {png} and {md}")
     if args.json:
-        keep = [k for m in (*METRICS, *CRASHES) for k in (m, f"{m}_se")]
+        keep = [k for m in METRICS for k in (m, f"{m}_se", f"{m}_ci95")]
         print(
             json.dumps(
                 {
                     "runs": {
                         n: {
-                            p: {k: round(v[k], 4) for k in keep}
+                            p: _rounded({k: v[k] for k in keep})
                             | {"score_iqm": round(v["score_iqm"], 4)}
                             for p, v in r.items()
                         }
@@ -400,6 +485,14 @@ def main(argv: list[str] | None = None) -> int:
             )
         )
     return 0
+
+
+def _rounded(values: Mapping[str, Any]) -> dict[str, Any]:
+    """Figures to 4 decimals for the JSON line (lists element-wise; NaN stays NaN)."""
+    return {
+        k: [round(float(x), 4) for x in v] if isinstance(v, list | tuple) else round(float(v), 4)
+        for k, v in values.items()
+    }
 
 
 if __name__ == "__main__":

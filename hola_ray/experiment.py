@@ -14,7 +14,8 @@ of the base), the seeds and the evaluation:
     seeds: [0, 1, 2]
     parallel: 0                       # trials started at once; 0: all (Ray runs those that fit)
     evaluation: {episodes: 50, seeds: [0, 1, 2], cell_episodes: 10, pools: [hot, het],
-                 learner: final}      # final: learner.pt; best: best.pt
+                 learner: final,      # final: learner.pt; best: best.pt
+                 pairs: [[uniform, sp]]}  # differences beyond hola − every other method
 
 Each trial (method × seed) is one `Trainer` run in `DIR/trials/<method>-s<seed>/`, run as a
 Ray task in a placement group of its own: one bundle for the trial's process (its PPO
@@ -30,9 +31,13 @@ driver's node after every generation (`hola_ray.mirror`). A trial whose run dire
 its last generation is done and never rerun: `--resume DIR` skips it, continues a trial
 that was cut short from its last complete generation and starts the rest. Then every
 trial's learner is evaluated against the pools (`hola_ray.evaluate`, one Ray task per
-trial, cached in `DIR/evaluation/`), and the experiment writes `DIR/results.json` (per
-trial and per method), `DIR/results.md` and `DIR/figure.png` (the paper's Fig. 4 layout,
-one bar per method: the mean over its seeds, error bars the standard error over seeds).
+trial, cached in `DIR/evaluation/` under the pools' manifest hashes, so a rebuilt pool is
+evaluated again), and the experiment writes `DIR/results.json` (per trial, per method, and
+the paired differences between methods), `DIR/results.md` and `DIR/figure.png` (the
+paper's Fig. 4 layout and AT-Drone's two metrics, one bar per method: the mean over its
+seeds, whiskers its 95 % interval). Intervals and differences: `hola_ray.evaluation.compare`
+(a bootstrap over training seeds within each method and over episodes within each partner
+combination; every trial plays the same episodes, so differences are paired).
 While it runs, a line every few seconds (and `DIR/progress.json`) says which trials run,
 wait or are done.
 """
@@ -65,10 +70,17 @@ METRICS = ("success", "collision", "length")
 @dataclass(frozen=True)
 class EvaluationSettings:
     episodes: int = 50
+    """episodes per evaluation seed, per pool"""
     seeds: tuple[int, ...] = (0, 1, 2)
+    """evaluation seeds: the same episodes and partner draws for every trial"""
     cell_episodes: int = 10
+    """episodes per BR-Prox score cell"""
     pools: tuple[str, ...] = ("hot", "het")
     learner: str = "final"
+    """final: each trial's learner.pt; best: its best.pt"""
+    pairs: tuple[tuple[str, str], ...] = ()
+    """method pairs (A, B) whose difference A − B is reported, beside `hola` against every
+    other method"""
 
 
 @dataclass(frozen=True)
@@ -112,6 +124,15 @@ class Experiment:
         if bad:
             raise ConfigError(f"{path}: unknown evaluation key(s) {sorted(bad)}")
         ev = {k: tuple(v) if isinstance(v, list) else v for k, v in ev.items()}
+        pairs = ev.get("pairs", ())
+        if not all(
+            isinstance(pair, list | tuple) and len(pair) == 2 and set(pair) <= set(methods)
+            for pair in pairs
+        ):
+            raise ConfigError(
+                f"{path}: evaluation.pairs must list [A, B] pairs of the experiment's methods"
+            )
+        ev["pairs"] = tuple(tuple(pair) for pair in pairs)
         evaluation = EvaluationSettings(**ev)
         if evaluation.learner not in ("final", "best"):
             raise ConfigError(f"{path}: evaluation.learner must be final or best")
@@ -139,6 +160,14 @@ class Experiment:
         if self.source is not None and (self.source.parent / base).is_file():
             return self.source.parent / base
         return ROOT / base
+
+    def pairs(self) -> list[tuple[str, str]]:
+        """The differences reported: `hola` against every other method (the first method
+        against the rest when there is no `hola`), then `evaluation.pairs`."""
+        methods = list(self.methods)
+        first = "hola" if "hola" in methods else methods[0]
+        out = [(first, m) for m in methods if m != first]
+        return out + [p for p in self.evaluation.pairs if p not in out]
 
     def trials(self) -> list[str]:
         """Trial names, method by method: `<method>-s<seed>`."""
@@ -507,11 +536,15 @@ class Runner:
         import ray
 
         self.eval_dir.mkdir(parents=True, exist_ok=True)
+        from hola_ray.evaluate import pool_fingerprints
+
         settings = {
             "episodes": self.exp.evaluation.episodes,
             "seeds": list(self.exp.evaluation.seeds),
             "cell_episodes": self.exp.evaluation.cell_episodes,
             "pools": list(self.exp.evaluation.pools),
+            "format": EVALUATION_FORMAT,
+            "pool_manifests": pool_fingerprints(self.exp.evaluation.pools),
         }
         results: dict[str, dict[str, Any]] = {}
         todo: list[str] = []
@@ -558,16 +591,16 @@ class Runner:
     # ---- phase 3: results -------------------------------------------------------------------
     def write_results(self, per_trial: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
         from hola_ray.evaluate import plot
+        from hola_ray.evaluation.compare import METRICS
 
-        methods = aggregate(per_trial, list(self.exp.methods))
-        keep = ("success", "collision", "length")
+        methods, differences = aggregate(per_trial, list(self.exp.methods), self.exp.pairs())
         trials = {
             t: {
                 "method": parse_trial(t)[0],
                 "seed": parse_trial(t)[1],
                 "pools": {
-                    p: {k: r[k] for k in keep}
-                    | {f"{k}_se": r[f"{k}_se"] for k in keep}
+                    p: {k: r[k] for k in METRICS}
+                    | {f"{k}_se": r[f"{k}_se"] for k in METRICS}
                     | {"score": r["score_iqm"]}
                     for p, r in pools_.items()
                 },
@@ -585,6 +618,9 @@ class Runner:
             },
             "trials": trials,
             "methods": methods,
+            "differences": differences,
+            "intervals": "95 %, stratified bootstrap: training seeds within each method, "
+            "episodes within each partner combination, shared by every trial (paired)",
         }
         _atomic_json(self.out / "results.json", results)
         figure_input = {
@@ -594,7 +630,9 @@ class Runner:
         png, _ = plot(figure_input, self.out)
         png.replace(self.out / "figure.png")
         (self.out / "evaluation.md").unlink(missing_ok=True)
-        (self.out / "results.md").write_text(results_table(methods, len(self.exp.seeds)))
+        (self.out / "results.md").write_text(
+            results_table(figure_input, differences, len(self.exp.seeds))
+        )
         return results
 
     def run(self) -> dict[str, Any]:
@@ -605,53 +643,90 @@ class Runner:
         return results
 
 
+EVALUATION_FORMAT = 2
+"""the layout of a cached trial evaluation (2: every episode's record, for the bootstrap)"""
+
+
 def aggregate(
-    per_trial: Mapping[str, Mapping[str, Mapping[str, Any]]], methods: Sequence[str]
-) -> dict[str, dict[str, dict[str, Any]]]:
-    """Per method and pool: the mean over its seeds' trials; `_se` the standard error over
-    seeds (with one seed: that trial's own standard error over evaluation seeds) and `_ci95`
-    a 95 % bootstrap interval over every (trial seed, evaluation seed) figure."""
-    from hola_ray.evaluate import bootstrap_ci
+    per_trial: Mapping[str, Mapping[str, Mapping[str, Any]]],
+    methods: Sequence[str],
+    pairs: Sequence[tuple[str, str]] = (),
+) -> tuple[dict[str, dict[str, dict[str, Any]]], dict[str, dict[str, dict[str, Any]]]]:
+    """Per method and pool: every metric's mean over the method's seeds with its standard
+    error (`_se`) and 95 % interval (`_ci95`), and the BR-Prox score's mean over seeds; per
+    pair "A-B" and pool, each metric's paired difference {mean, se, ci95}. Intervals and
+    standard errors from `hola_ray.evaluation.compare` (training seeds and episodes)."""
+    from hola_ray.evaluation.compare import METRICS, compare
 
-    out: dict[str, dict[str, dict[str, Any]]] = {}
-    for method in methods:
-        trials = [r for t, r in per_trial.items() if parse_trial(t)[0] == method]
-        pools_ = sorted({p for r in trials for p in r})
-        out[method] = {}
-        for pool in pools_:
-            rows = [r[pool] for r in trials if pool in r]
-            figures: dict[str, Any] = {"trials": len(rows)}
-            for m in (*METRICS, "score"):
-                key = "score_iqm" if m == "score" else m
-                values = np.array([r[key] for r in rows], dtype=np.float64)
-                figures[m] = float(values.mean())
-                if len(values) > 1:
-                    figures[f"{m}_se"] = float(values.std(ddof=1) / np.sqrt(len(values)))
-                else:
-                    figures[f"{m}_se"] = float(rows[0].get(f"{key}_se", 0.0))
-                if m != "score":
-                    every = np.concatenate([r[f"{m}_per_seed"] for r in rows])
-                    figures[f"{m}_ci95"] = [round(x, 4) for x in bootstrap_ci(every)]
-            out[method][pool] = figures
-    return out
+    pools_ = sorted({p for r in per_trial.values() for p in r}, key=lambda p: (p != "hot", p))
+    out: dict[str, dict[str, dict[str, Any]]] = {m: {} for m in methods}
+    differences: dict[str, dict[str, dict[str, Any]]] = {f"{a}-{b}": {} for a, b in pairs}
+    for pool in pools_:
+        rows = {
+            m: [r[pool] for t, r in per_trial.items() if parse_trial(t)[0] == m and pool in r]
+            for m in methods
+        }
+        rows = {m: rs for m, rs in rows.items() if rs}
+        episodes = {
+            m: [{k: np.asarray(v) for k, v in r["per_episode"].items()} for r in rs]
+            for m, rs in rows.items()
+        }
+        wanted = [(a, b) for a, b in pairs if a in rows and b in rows]
+        figures, diffs = compare(episodes, wanted)
+        for m, rs in rows.items():
+            entry: dict[str, Any] = {"trials": len(rs)}
+            for k in METRICS:
+                entry[k] = figures[m][k]["mean"]
+                entry[f"{k}_se"] = figures[m][k]["se"]
+                entry[f"{k}_ci95"] = figures[m][k]["ci95"]
+            scores = np.array([r["score_iqm"] for r in rs], dtype=np.float64)
+            entry["score"] = float(scores.mean())
+            entry["score_se"] = (
+                float(scores.std(ddof=1) / np.sqrt(scores.size)) if scores.size > 1 else 0.0
+            )
+            out[m][pool] = entry
+        for (a, b), key in zip(wanted, diffs, strict=True):
+            differences[f"{a}-{b}"][pool] = diffs[key]
+    return out, differences
 
 
-def results_table(methods: Mapping[str, Mapping[str, Mapping[str, Any]]], seeds: int) -> str:
+def results_table(
+    methods: Mapping[str, Mapping[str, Mapping[str, Any]]],
+    differences: Mapping[str, Mapping[str, Mapping[str, Any]]],
+    seeds: int,
+) -> str:
+    """results.md: every method's figures, then the paired differences with a verdict."""
+    from hola_ray.evaluate import table_lines
+    from hola_ray.evaluation.compare import HIGHER_IS_BETTER, verdict
+
     lines = [
-        f"Mean over {seeds} seed(s) ± standard error over seeds; [95 % bootstrap interval].",
+        f"Mean over {seeds} training seed(s) per method; [95 % interval]: a stratified "
+        "bootstrap over training seeds (within each method) and evaluation episodes (within "
+        "each partner combination). Steps to success: mean length of the successful "
+        "episodes (AT-Drone's AST); reward: mean per-pursuer return (REW).",
         "",
-        "| method | pool | success | collision | length | score (IQM) |",
+        *table_lines(methods, "method"),
+        "",
+        "Paired differences A − B on the same episodes, [95 % interval]. An interval that "
+        "contains zero is a tie.",
+        "",
+        "| A − B | pool | success | collision | length | learner crashed |",
         "| --- | --- | --- | --- | --- | --- |",
     ]
-    for method, pools_ in methods.items():
-        for pool in sorted(pools_, key=lambda p: (p != "hot", p)):
-            r = pools_[pool]
-            lo, hi = r["success_ci95"]
-            lines.append(
-                f"| {method} | {pool} | {r['success']:.1%} ± {r['success_se']:.1%} "
-                f"[{lo:.0%}, {hi:.0%}] | {r['collision']:.1%} ± {r['collision_se']:.1%} | "
-                f"{r['length']:.0f} ± {r['length_se']:.0f} | {r['score']:.3f} |"
-            )
+    for pair, by_pool in differences.items():
+        a = pair.split("-")[0]
+        for pool, diff in by_pool.items():
+            cells = []
+            for m in ("success", "collision", "length", "learner_crash"):
+                d = diff[m]
+                lo, hi = d["ci95"]
+                word = verdict(d, HIGHER_IS_BETTER[m])
+                word = "tie" if word == "tie" else f"{a} {word}"
+                if m == "length":
+                    cells.append(f"{d['mean']:+.1f} [{lo:+.1f}, {hi:+.1f}] {word}")
+                else:
+                    cells.append(f"{d['mean']:+.1%} [{lo:+.1%}, {hi:+.1%}] {word}")
+            lines.append(f"| {pair} | {pool} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -700,7 +775,9 @@ def main(argv: list[str] | None = None) -> int:
             "seeds": list(experiment.seeds),
             "parallel": experiment.parallel,
             "evaluation": {
-                k: list(v) if isinstance(v, tuple) else v
+                k: [list(x) if isinstance(x, tuple) else x for x in v]
+                if isinstance(v, tuple)
+                else v
                 for k, v in experiment.evaluation.__dict__.items()
             },
         }

@@ -28,7 +28,6 @@ episodes are played by members trained for two.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import dataclasses
 import hashlib
@@ -42,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from hola_ray.cli import OneLineParser, fail
 from hola_ray.env.config import PursuitConfig
 from hola_ray.policies.base import Policy
 from hola_ray.policies.registry import load_policy, make_policy
@@ -162,8 +162,12 @@ def read_manifest(folder: Path) -> dict[str, Any]:
             f"{folder} holds no {MANIFEST}: build it with python -m hola_ray.pools build "
             f"--pool {folder.name}"
         )
-    manifest = json.loads(path.read_text())
-    if manifest.get("format") != FORMAT:
+    try:
+        manifest = json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise PoolError(f"{path}: not valid JSON ({err}); restore it from git") from err
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
+        manifest = manifest if isinstance(manifest, dict) else {}
         raise PoolError(f"{path}: not a {FORMAT} manifest (format {manifest.get('format')!r})")
     return manifest
 
@@ -199,8 +203,14 @@ def load_member(folder: Path, mid: str, entry: dict[str, Any], config: PursuitCo
     if kind == "d3qn" and scenario["n_pursuers"] == config.n_pursuers:
         # D3QN-G reads the first evader only and plays Greedy once it is caught (SPEC §3):
         # it plays any number of evaders as it is
-        return load_policy(folder / entry["file"], config, name=entry["name"])
-    policy = load_policy(folder / entry["file"], trained, name=entry["name"])
+        try:
+            return load_policy(folder / entry["file"], config, name=entry["name"])
+        except ValueError as err:
+            raise PoolError(f"pool {folder.name}: member {mid}: {err}") from err
+    try:
+        policy = load_policy(folder / entry["file"], trained, name=entry["name"])
+    except ValueError as err:
+        raise PoolError(f"pool {folder.name}: member {mid}: {err}") from err
     if trained.n_evaders == config.n_evaders:
         return policy
     return ScenarioAdapter(config, policy, trained.n_evaders)
@@ -348,9 +358,7 @@ def show(pool: str | Path) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="python -m hola_ray.pools", description=__doc__.split("\n\n")[0]
-    )
+    parser = OneLineParser(prog="python -m hola_ray.pools", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     b = sub.add_parser("build", help="train what is missing and write pools/<name>/")
     b.add_argument("--pool", choices=sorted(POOLS), action="append", help="default: both")
@@ -369,8 +377,7 @@ def main(argv: list[str] | None = None) -> int:
             for pool in [args.pool] if args.pool else sorted(POOLS):
                 print(show(pool))
     except PoolError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
+        return fail(str(err))
     return 0
 
 

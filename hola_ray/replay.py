@@ -13,10 +13,11 @@ collision marks, a legend naming each seat's policy) and prints the episode's me
 
 from __future__ import annotations
 
-import argparse
+import sys
 from pathlib import Path
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.cli import OneLineParser, fail
+from hola_ray.env.config import ConfigError, PursuitConfig
 from hola_ray.env.render import animate_trajectory, plot_trajectory
 from hola_ray.evaluation.trajectory import record
 from hola_ray.policies.base import Policy
@@ -34,14 +35,17 @@ def resolve(name: str, config: PursuitConfig) -> Policy:
         return load_pool(pool, config)[name]
     if Path(name).exists():
         return load_policy(name, config)
+    if "/" in name or name.endswith(".pt"):
+        raise ValueError(f"{name}: no such file or directory")
     raise ValueError(
         f"unknown policy {name!r}: give a registry name ({', '.join(policy_names()[:2])}, "
         f"apf-a-0…23), a pool member ({', '.join(MEMBERS)}), a run directory or a .pt file"
     )
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m hola_ray.replay", description=__doc__)
+def main(argv: list[str] | None = None) -> int:
+    """The command; 0, or 2 after one line on stderr for a bad input."""
+    parser = OneLineParser(prog="python -m hola_ray.replay", description=__doc__)
     parser.add_argument(
         "--team",
         nargs="+",
@@ -63,6 +67,34 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--stride", type=int, default=2, help="steps per GIF frame")
     args = parser.parse_args(argv)
 
+    try:
+        config, team = _team(args)
+    except (ValueError, RuntimeError, ConfigError) as err:  # PoolError is a RuntimeError
+        return fail(str(err))
+    traj = record(config, team, seed=args.seed)
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    names = [p.name for p in team]
+    stem = f"{'-'.join(Path(n).stem for n in _names(args, config))}_seed{args.seed}"
+    png = args.out / f"{stem}.png"
+    gif = args.out / f"{stem}.gif"
+    plot_trajectory(config, traj, str(png))
+    frames = animate_trajectory(config, traj, str(gif), stride=args.stride)
+    print(f"team: {', '.join(names)}")
+    print(f"metrics: {traj.metrics}")
+    print(f"wrote {png} and {gif} ({frames} frames)")
+    return 0
+
+
+def _names(args, config: PursuitConfig) -> list[str]:
+    names = args.team * config.n_pursuers if len(args.team) == 1 else args.team
+    if len(names) != config.n_pursuers:
+        raise ValueError(f"--team needs 1 or {config.n_pursuers} names, got {len(names)}")
+    return names
+
+
+def _team(args) -> tuple[PursuitConfig, list[Policy]]:
+    """The scenario and one policy per seat (a name given once fills every seat)."""
     config = PursuitConfig.from_yaml(args.config) if args.config else PursuitConfig()
     if args.evaders is None and args.config is None:
         # a learned seat's export says which scenario it was trained in: play that one
@@ -73,24 +105,8 @@ def main(argv: list[str] | None = None) -> None:
             )
     if args.evaders is not None:
         config = PursuitConfig.from_dict({**config.to_dict(), "n_evaders": args.evaders})
-    names = args.team * config.n_pursuers if len(args.team) == 1 else args.team
-    if len(names) != config.n_pursuers:
-        parser.error(f"--team needs 1 or {config.n_pursuers} names, got {len(names)}")
-    try:
-        team = [resolve(name, config) for name in names]
-    except (ValueError, RuntimeError) as err:
-        parser.error(str(err))
-    traj = record(config, team, seed=args.seed)
-
-    args.out.mkdir(parents=True, exist_ok=True)
-    stem = f"{'-'.join(Path(n).stem for n in names)}_seed{args.seed}"
-    png = args.out / f"{stem}.png"
-    gif = args.out / f"{stem}.gif"
-    plot_trajectory(config, traj, str(png))
-    frames = animate_trajectory(config, traj, str(gif), stride=args.stride)
-    print(f"metrics: {traj.metrics}")
-    print(f"wrote {png} and {gif} ({frames} frames)")
+    return config, [resolve(name, config) for name in _names(args, config)]
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

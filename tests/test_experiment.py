@@ -10,7 +10,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -49,14 +48,21 @@ def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(tm
     out = tmp_path / "exp"
     cmd = [sys.executable, "-m", "hola_ray.experiment", "--config", str(path), "--out", str(out)]
     driver = subprocess.Popen(
-        cmd, cwd=ROOT, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        cmd,
+        cwd=ROOT,
+        start_new_session=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
     )
     first = out / "trials" / "hola-s0"
-    deadline = time.monotonic() + 300
-    while trial_state(first, 1)[0] != "done":
-        assert driver.poll() is None, "the experiment ended before it could be killed"
-        assert time.monotonic() < deadline, "the first trial never finished"
-        time.sleep(0.2)
+    # the runner says "hola-s0: done in …" once the trial's task returned: wait for that line
+    for line in driver.stdout:
+        if line.startswith("hola-s0: done in"):
+            break
+    else:
+        raise AssertionError("the experiment ended before its first trial was done")
+    assert trial_state(first, 1)[0] == "done"
     os.killpg(driver.pid, signal.SIGKILL)  # the driver and the local Ray it started
     driver.wait()
     assert trial_state(out / "trials" / "sp-s0", 1)[0] != "done"
@@ -131,29 +137,52 @@ def test_a_bad_experiment_config_is_one_clear_error(tmp_path, patch, message):
         Experiment.from_yaml(path)
 
 
-def test_a_method_is_the_mean_over_its_seeds_with_the_standard_error_over_seeds():
-    def trial(success):
+def test_methods_and_their_paired_differences_from_every_trials_episodes():
+    """A method's figure is the mean over its seeds; its interval spans the seeds and the
+    episodes; the difference of two methods on the same episodes says who is ahead, and a
+    difference whose interval holds zero is reported as a tie."""
+    from hola_ray.experiment import results_table
+
+    n = 120
+    strata = np.arange(n) % 4  # four partner combinations, 30 episodes each
+    rank = np.random.default_rng(0).permutation(n)  # how hard each episode is: shared
+
+    def trial(rate):
+        success = (rank < rate * n).astype(float)
+        per_episode = {
+            "success": success,
+            "collision": 1 - success,
+            "length": np.where(success > 0, 300.0, 1000.0),
+            "reward": 20.0 * success,
+            "learner_crash": 1 - success,
+            "teammate_crash": np.zeros(n),
+            "stratum": strata,
+        }
         return {
-            "hot": {
-                "success": success,
-                "success_se": 0.01,
-                "success_per_seed": [success, success],
-                "collision": 0.5,
-                "collision_se": 0.0,
-                "collision_per_seed": [0.5, 0.5],
-                "length": 400.0,
-                "length_se": 1.0,
-                "length_per_seed": [400.0, 400.0],
-                "score_iqm": 0.5,
-            }
+            "hot": {"per_episode": {k: list(v) for k, v in per_episode.items()}, "score_iqm": rate}
         }
 
-    out = aggregate({"hola-s0": trial(0.2), "hola-s1": trial(0.4), "sp-s0": trial(0.9)}, ["hola"])
+    per_trial = {
+        "hola-s0": trial(0.2),
+        "hola-s1": trial(0.4),
+        "sp-s0": trial(0.9),
+        "uniform-s0": trial(0.3),
+        "uniform-s1": trial(0.31),
+    }
+    pairs = [("hola", "sp"), ("hola", "uniform")]
+    out, diffs = aggregate(per_trial, ["hola", "sp", "uniform"], pairs)
     hot = out["hola"]["hot"]
     assert hot["success"] == pytest.approx(0.3) and hot["trials"] == 2
-    assert hot["success_se"] == pytest.approx(np.std([0.2, 0.4], ddof=1) / np.sqrt(2))
+    assert hot["steps_success"] == pytest.approx(300.0) and hot["reward"] == pytest.approx(6.0)
     lo, hi = hot["success_ci95"]
-    assert 0.2 <= lo <= 0.3 <= hi <= 0.4
+    assert 0.1 < lo < 0.3 < hi < 0.5 and hot["success_se"] > 0
+    behind = diffs["hola-sp"]["hot"]["success"]
+    assert behind["mean"] == pytest.approx(-0.6) and behind["ci95"][1] < 0
+    tie = diffs["hola-uniform"]["hot"]["success"]
+    assert tie["ci95"][0] < 0 < tie["ci95"][1]
+    table = results_table(out, diffs, seeds=2)
+    assert "| hola-sp | hot | -60.0%" in table and "hola behind" in table
+    assert "| hola-uniform | hot |" in table and " tie |" in table
 
 
 @pytest.mark.parametrize("name", ["smoke", "laptop", "paper"])

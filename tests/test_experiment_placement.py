@@ -74,11 +74,7 @@ def stand_in(meet: int):
         root = Path(run_dir)
         root.mkdir(parents=True)
         (root.parent / f"{root.name}.started").touch()
-        deadline = time.monotonic() + 120
-        while len(list(root.parent.glob("*.started"))) < meet:
-            if time.monotonic() > deadline:
-                raise TimeoutError(f"{meet} trials never ran at once")
-            time.sleep(0.1)
+        wait_until(lambda: len(list(root.parent.glob("*.started"))) >= meet, f"{meet} trials")
         seen = {
             "trial": [
                 ray.util.get_current_placement_group().id.hex(),
@@ -87,11 +83,29 @@ def stand_in(meet: int):
             "runners": ray.get([r.where.remote() for r in runners]),
             "member": ray.get(member.where.remote()),
         }
-        time.sleep(0.5)  # long enough for the runner's view to see it running
+        # until the runner's progress view (DIR/progress.json) has shown this trial running
+        progress = root.parent.parent / "progress.json"
+        wait_until(lambda: _status(progress, root.name) == "running", f"{root.name} shown")
         (root / "where.json").write_text(json.dumps(seen))
         return run_dir
 
     return trial
+
+
+def wait_until(event, what: str, limit_s: float = 900.0) -> None:
+    """Wait for `event()` to hold (polled); the limit only ends a test that would hang."""
+    deadline = time.monotonic() + limit_s
+    while not event():
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"never happened: {what}")
+        time.sleep(0.05)
+
+
+def _status(progress: Path, trial: str) -> str | None:
+    try:
+        return json.loads(progress.read_text())[trial]["status"]
+    except (OSError, ValueError, KeyError):
+        return None  # not written yet, or caught mid-replace
 
 
 def run(exp: Experiment, out: Path, meet: int) -> tuple[Runner, list[str]]:

@@ -98,14 +98,13 @@ def test_the_committed_pools_load_and_play_their_recorded_table_ii(name):
     members = load_pool(name, config)  # every hash verified
     manifest = read_manifest(pool_dir(name))
     assert set(members) == set(manifest["members"])
-    for mid, entry in manifest["members"].items():
-        if "table_ii" not in entry or entry["file"] is None:
-            continue
+    for mid, entry in manifest["members"].items():  # hand-written members too
         recorded = entry["table_ii"]
         episodes = recorded["episodes"] // len(recorded["seeds"])
         again = measure(members[mid], config, episodes, recorded["seeds"])
-        for key in ("success", "length", "collision"):  # play is deterministic
-            assert round(again[key], 2) == round(recorded[key], 2), (mid, key)
+        for key, value in recorded.items():  # play is deterministic: to the manifest's digits
+            if key not in ("episodes", "seeds"):
+                assert round(again[key], 4) == value, (mid, key)
 
 
 def test_d3qn_g_trained_against_one_evader_plays_two_as_it_is():

@@ -14,6 +14,23 @@ from hola_ray.evaluation.stats import mean_and_se
 from hola_ray.policies.base import Policy, seated
 
 
+class PolicyError(ValueError):
+    """A policy whose actions are not a finite array with one action per observation row."""
+
+    @classmethod
+    def check(cls, name: str, actions: object, rows: int) -> np.ndarray:
+        """`actions` as a float array [rows], or this error naming the policy."""
+        try:
+            out = np.asarray(actions, dtype=np.float64)
+        except (TypeError, ValueError) as err:
+            raise cls(f"{name}: act returned {type(actions).__name__}, not numbers") from err
+        if out.shape != (rows,):
+            raise cls(f"{name}: act returned shape {out.shape} for {rows} observations")
+        if not np.isfinite(out).all():
+            raise cls(f"{name}: act returned a non-finite action (NaN or inf)")
+        return out
+
+
 @dataclass(frozen=True)
 class RolloutResult:
     """Per-episode outcomes and their means with standard errors."""
@@ -105,7 +122,9 @@ def _play(
     while not env.done.all():
         for policy, mask in zip(policies, masks, strict=True):
             if mask.any():
-                actions[mask] = policy.act(obs[mask])
+                rows = obs[mask]
+                name = getattr(policy, "name", type(policy).__name__)
+                actions[mask] = PolicyError.check(name, policy.act(rows), len(rows))
         obs = env.step(actions).obs
     return (
         env.success.copy(),

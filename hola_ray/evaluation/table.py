@@ -9,13 +9,14 @@ pool is not built says so. With `--json` the last line is
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
+import sys
 from collections.abc import Sequence
 
 import numpy as np
 
+from hola_ray.cli import OneLineParser, fail
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import mean_and_se
@@ -141,14 +142,17 @@ def format_table(rows: list[dict[str, float | str]], missing: dict[str, str] | N
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(
+def main(argv: list[str] | None = None) -> int:
+    """The command; 0, or 2 after one line on stderr for a bad input."""
+    parser = OneLineParser(
         prog="python -m hola_ray.evaluation.table", description=__doc__.split("\n\n")[0]
     )
     parser.add_argument("--episodes", type=int, default=50, help="episodes per seed")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="run seeds")
     parser.add_argument("--json", action="store_true", help="last line: the rows as JSON")
     args = parser.parse_args(argv)
+    if args.episodes < 1:
+        return fail(f"--episodes must be at least 1, got {args.episodes}")
     rows, missing = paper_rows(args.episodes, args.seeds)
     print("Paper Table II: one evader, three copies of the agent (SR = success rate, ± 1 s.e.)")
     print(format_table(rows, missing))
@@ -169,7 +173,8 @@ def main(argv: list[str] | None = None) -> None:
             }
         }
         print(json.dumps(out))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -59,7 +59,16 @@ def load_export(path: str | Path) -> dict:
             f"{GENERATION_STATE}, nor a policy file"
         )
     if file.name != GENERATION_STATE:
-        return torch.load(file, map_location="cpu", weights_only=True)
+        try:
+            export = torch.load(file, map_location="cpu", weights_only=True)
+        except Exception as err:  # noqa: BLE001 - torch raises many kinds for a bad file
+            first = str(err).strip().splitlines()[0] if str(err).strip() else ""
+            raise ValueError(
+                f"{file}: not a torch export ({type(err).__name__}: {first[:120]})"
+            ) from err
+        if not isinstance(export, dict):
+            raise ValueError(f"{file}: not a policy export (a {type(export).__name__})")
+        return export
     from hola_ray.methods.config import RunConfig
 
     run_config = path.parent.parent / "config.yaml"

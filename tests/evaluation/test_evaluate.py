@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from hola_ray.env.config import PursuitConfig
-from hola_ray.evaluate import br_prox, cell_returns, draw_teams, iqm, main, seed_means
+from hola_ray.evaluate import br_prox, cell_returns, draw_teams, iqm, main, play
 from hola_ray.policies.learned import random_export
 from hola_ray.policies.registry import make_policy
 
@@ -45,7 +45,7 @@ def test_draws_seat_the_learner_in_every_seat_and_only_pool_members_beside_it():
     learner = Recorder(make_policy("greedy", CONFIG))
     pool = [Recorder(make_policy(n, CONFIG)) for n in ("vicsek", "apf-a-10")]
     outsider = Recorder(make_policy("apf-a-3", CONFIG))
-    seed_means(learner, pool, CONFIG, episodes=12, seeds=[0])
+    play(learner, pool, CONFIG, episodes=12, seeds=[0])
     assert learner.rows > 0 and all(p.rows > 0 for p in pool) and outsider.rows == 0
 
 
@@ -153,22 +153,124 @@ def test_replay_plays_the_scenario_a_learner_was_trained_in(tmp_path, capsys):
     one = PursuitConfig(n_evaders=1)
     path = tmp_path / "one.pt"
     torch.save(random_export(one.obs_dim, hidden=(8,)) | {"scenario": one.to_dict()}, path)
-    replay(["--team", str(path), "vicsek", "greedy", "--out", str(tmp_path / "r")])
+    assert replay(["--team", str(path), "vicsek", "greedy", "--out", str(tmp_path / "r")]) == 0
     assert "'captures'" in capsys.readouterr().out
-    with pytest.raises(SystemExit):  # asked for another scenario: one clear error
-        replay(["--team", str(path), "--evaders", "2", "--out", str(tmp_path / "r")])
 
 
 def test_learner_crash_is_the_learners_own_seat(config, straight):
     """A learner that never turns crashes almost every episode; its Vicsek teammates
-    rarely do. The episode-level collision rate lies between the two seat rates."""
+    rarely do. An episode with a crashed seat is a collision."""
     from hola_ray.policies import Vicsek
 
-    means = seed_means(straight, [Vicsek(config)], config, 40, [0, 1])
-    assert set(means) >= {"learner_crash", "teammate_crash", "collision"}
-    assert np.all(means["learner_crash"] > 0.9)
-    assert np.all(means["teammate_crash"] < means["learner_crash"] / 3)
-    assert np.all(means["collision"] >= means["learner_crash"])
+    played = play(straight, [Vicsek(config)], config, 40, [0, 1])
+    assert played["learner_crash"].shape == (80,)
+    assert played["learner_crash"].mean() > 0.9
+    assert played["teammate_crash"].mean() < played["learner_crash"].mean() / 3
+    assert np.all(played["collision"] >= played["learner_crash"])
+    assert np.all(played["collision"] >= (played["teammate_crash"] > 0))
+
+
+def test_partner_combinations_ignore_the_learners_seat_and_the_order():
+    from hola_ray.evaluate import partner_combinations
+
+    teams = np.array([[0, 1, 2], [2, 0, 1], [1, 2, 0], [0, 2, 2], [3, 0, 1]])
+    ids = partner_combinations(teams, members=3)
+    assert ids[0] == ids[1] == ids[2]  # {1, 2} in any seats
+    assert len({ids[0], ids[3], ids[4]}) == 3  # {2, 2} and {1, 3} are other combinations
+
+
+def test_evaluate_reports_at_drones_metrics_with_intervals(learner_file, capsys):
+    small = ["--pool", "het", "--episodes", "6", "--seeds", "0", "1", "--cell-episodes", "1"]
+    assert main([str(learner_file), *small, "--json"]) == 0
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["runs"]["mine"]["het"]
+    for m in ("success", "collision", "length", "steps_success", "reward", "learner_crash"):
+        assert m in row and f"{m}_se" in row and len(row[f"{m}_ci95"]) == 2
+    lo, hi = row["reward_ci95"]
+    assert lo <= row["reward"] <= hi
+
+
+NAN_PARTNER = """
+import numpy as np
+
+
+class Bad:
+    name = "bad"
+
+    def __init__(self, shape, value):
+        self.shape, self.value = shape, value
+
+    def act(self, obs):
+        return np.full(self.shape(len(obs)), self.value)
+
+    def reset(self, mask=None):
+        pass
+
+
+def nan(config):
+    return Bad(lambda n: n, float("nan"))
+
+
+def wide(config):
+    return Bad(lambda n: (n, 2), 0.5)
+
+
+def boom(config):
+    raise RuntimeError("no such hardware")
+"""
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda tmp: [str(tmp / "nowhere.pt")], "nowhere.pt: no such file or directory"),
+        (lambda tmp: [str(tmp)], "neither a run directory with learner.pt"),
+        (lambda tmp: [_write(tmp / "notes.pt", b"just some text\n")], "not a torch export"),
+        (lambda tmp: [_truncated(tmp)], "not a torch export"),
+        (lambda tmp: [_learner(tmp), "--pool", "nope"], "unknown pool 'nope'"),
+        (lambda tmp: [_learner(tmp), "--partner", _partners(tmp, "boom")], "raised RuntimeError"),
+        (lambda tmp: [_learner(tmp), "--partner", _partners(tmp, "wide")], "returned shape"),
+        (lambda tmp: [_learner(tmp), "--partner", _partners(tmp, "nan")], "non-finite action"),
+        (lambda tmp: [_learner(tmp), "--episodes", "0"], "must be at least 1"),
+    ],
+)
+def test_every_bad_input_is_one_line_and_exit_code_2(tmp_path, capsys, make, message):
+    assert main(make(tmp_path)) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+def test_a_d3qn_g_export_is_evaluated_as_a_learner(capsys):
+    """D3QN-G reads the first evader only: it plays the evaluation's scenario (3 vs 2)."""
+    from hola_ray.pools import POOLS_DIR
+
+    small = ["--episodes", "4", "--seeds", "0", "--cell-episodes", "1", "--json"]
+    assert main([str(POOLS_DIR / "het" / "d3qn-g-1.pt"), "--pool", "hot", *small]) == 0
+    out = capsys.readouterr().out
+    assert "3 pursuers vs 2 evader(s)" in out
+    assert 0 <= json.loads(out.strip().splitlines()[-1])["runs"]["d3qn-g-1"]["hot"]["success"] <= 1
+
+
+def _write(path, data: bytes) -> str:
+    path.write_bytes(data)
+    return str(path)
+
+
+def _learner(tmp) -> str:
+    path = tmp / "mine.pt"
+    torch.save(random_export(PursuitConfig().obs_dim, hidden=(8,)), path)
+    return str(path)
+
+
+def _truncated(tmp) -> str:
+    whole = (tmp / "whole.pt").as_posix()
+    torch.save(random_export(PursuitConfig().obs_dim, hidden=(8,)), whole)
+    data = (tmp / "whole.pt").read_bytes()
+    return _write(tmp / "cut.pt", data[: len(data) // 2])
+
+
+def _partners(tmp, name: str) -> str:
+    (tmp / "bad_partners.py").write_text(NAN_PARTNER)
+    return f"{tmp / 'bad_partners.py'}:{name}"
 
 
 def test_learners_of_one_file_name_are_told_apart_by_their_folder(learner_file, tmp_path, capsys):

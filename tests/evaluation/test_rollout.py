@@ -40,11 +40,24 @@ def test_mixed_assignment_uses_each_policy_in_its_slots(config):
         rollout(config, pool, 3, assignment=np.full((3, 3), 2))
 
 
-def test_table_rows_have_paper_figures():
-    rows = table_rows(["greedy", "vicsek"], episodes=20, seeds=[0])
+def test_table_ii_rows_are_three_copies_against_one_evader_beside_the_paper():
+    """Each row is three separate copies of the agent against one evader, pooled over the
+    seeds, set beside the paper's figure with the difference."""
+    from hola_ray.evaluation.table import PAPER_TABLE_II, format_table
+
+    rows = table_rows(["greedy", "vicsek"], episodes=20, seeds=[0, 1])
     assert [r["agent"] for r in rows] == ["Greedy", "VICSEK"]
-    assert rows[0]["paper_sr"] == 0.62 and rows[1]["paper_ael"] == 295.88
-    assert all(0 <= r["sr"] <= 1 and r["ael"] > 0 for r in rows)
+    one = PursuitConfig(n_evaders=1)
+    for row, make in zip(rows, (Greedy, Vicsek), strict=True):
+        runs = [rollout(one, [make(one) for _ in range(3)], 20, seed=s) for s in (0, 1)]
+        success = np.concatenate([r.success for r in runs])
+        assert (row["sr"], row["sr_se"]) == mean_and_se(success)
+        assert row["ael"] == np.concatenate([r.length for r in runs]).mean()
+        assert row["collision"] == np.concatenate([r.collision for r in runs]).mean()
+        assert row["episodes"] == 40
+        assert (row["paper_sr"], row["paper_ael"]) == PAPER_TABLE_II[row["agent"]]
+    text = format_table(rows)
+    assert f"{rows[0]['sr'] - 0.62:>+6.0%}" in text.splitlines()[2]  # Greedy's ΔSR
 
 
 def test_crashed_says_which_seat_collided(config, straight):

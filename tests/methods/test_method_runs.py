@@ -92,36 +92,42 @@ def test_best_response_methods_keep_their_population_fixed(tmp_path, capsys, met
 
 
 def test_pbt_trains_its_agents_in_turn_and_exploits_the_best(tmp_path, capsys):
-    """pbt: three agents trained jointly, then one per generation with the other two; after
-    each has trained once, the lowest-scoring one takes the best one's weights (and lr and
-    entropy coefficient, perturbed)."""
+    """pbt: three agents trained jointly, then one per generation with the other two. Once
+    each has trained, the lowest-scoring one takes the best one's weights and its lr and
+    entropy coefficient, perturbed. The exploit is forced: after agents 0 and 1 trained,
+    their saved scores are raised far above anything a smoke run reaches, so agent 2,
+    trained on resuming, is the lowest and must exploit agent 1 (the top)."""
     import json
 
     import torch
 
     smoke = yaml.safe_load(SMOKE.read_text())
-    patch = {"method": "pbt", "generations": 3, "pbt": {"quantile": 0.34}}
-    run_config = smoke | patch
+    patch = {"method": "pbt", "generations": 2, "pbt": {"quantile": 0.34, "perturb": [0.5]}}
     out = tmp_path / "pbt"
-    said = train(run_config, out, capsys)
+    said = train(smoke | patch, out, capsys)
     assert "pre-trained 3 members jointly (PBT's start)" in said
     r = RunDir(out)
+    saved = r.generation(2) / "state.json"
+    state = json.loads(saved.read_text())
+    assert sorted(state["population"]["agent_scores"]) == ["0", "1"]  # agent 2 not yet
+    state["population"]["agent_scores"] = {"0": 1e6, "1": 2e6}
+    saved.write_text(json.dumps(state))
+
+    said = train(smoke | patch | {"generations": 3}, out, capsys)
     states = [json.loads((r.generation(g) / "state.json").read_text()) for g in (1, 2, 3)]
     assert [s["decision"]["slot"] for s in states] == [0, 1, 2]  # each agent in turn
     assert all(s["decision"]["replaced"] == g for g, s in enumerate(states))  # its parent
     last = states[-1]
-    scores = {int(k): v for k, v in last["population"]["agent_scores"].items()}
-    hyper = {int(k): v for k, v in last["population"]["agent_hyper"].items()}
-    source = last["decision"]["copied_from"]
     slots = {int(k): v for k, v in last["population"]["slots"].items()}
-    if source is not None:  # agent 2 was the lowest: it exploits the best agent
-        top = slots[source]
-        assert scores[2] == scores[top] == max(scores.values())
-        assert hyper[2] != hyper[top]  # explored
-        candidate = last["decision"]["candidate"]
-        copied = torch.load(r.member_export(candidate), weights_only=False)
-        original = torch.load(r.member_export(source), weights_only=False)
-        for w1, w2 in zip(copied["weights"], original["weights"], strict=True):
-            assert torch.equal(w1, w2)
-    else:  # agent 2 scored above the lowest: nobody exploits on its turn
-        assert scores[2] > min(scores.values())
+    source = last["decision"]["copied_from"]
+    assert source is not None and slots[source] == 1  # exploits the top agent
+    assert f"it exploits node {source}" in said
+    scores = {int(k): v for k, v in last["population"]["agent_scores"].items()}
+    assert scores[2] == scores[1] == 2e6  # and takes its score
+    hyper = {int(k): v for k, v in last["population"]["agent_hyper"].items()}
+    for h in ("lr", "entropy_coef"):
+        assert hyper[2][h] == pytest.approx(0.5 * hyper[1][h])  # explores: × perturb
+    copied = torch.load(r.member_export(last["decision"]["candidate"]), weights_only=False)
+    original = torch.load(r.member_export(source), weights_only=False)
+    for w1, w2 in zip(copied["weights"], original["weights"], strict=True):
+        assert torch.equal(w1, w2)

@@ -277,13 +277,17 @@ def test_self_play_seats_the_learner_in_every_slot():
     assert stats.module_return.keys() <= {LEARNER}
 
 
-def test_train_splits_its_time_into_sampling_and_the_learner_update(oracle):
-    stats = oracle.train(400, progress=False)
-    assert stats.env_steps >= 400 and stats.iterations >= 1
-    # The update is timed inside the learner, so it is a real part of this call's time
-    # (RLlib's own timers are moving averages and could exceed it).
-    assert 0 < stats.learn_s < stats.wall_s
-    assert stats.sample_s == pytest.approx(stats.wall_s - stats.learn_s)
+def test_train_runs_updates_until_its_steps_and_logs_each(oracle):
+    """`train(n)` runs PPO iterations of `train_batch` steps until n are sampled, logs one
+    row per iteration, and takes the update's time from the learner's own clock."""
+    learner = oracle.algo.learner_group._learner
+    clock = learner.update_s
+    stats = oracle.train(1000, progress=False)  # batches of 400: three iterations
+    steps = [row["env_steps"] for row in stats.iteration_log]
+    assert stats.iterations == len(steps) == 3
+    assert np.all(np.diff([0, *steps]) >= CONFIG.oracle.train_batch)  # whole batches
+    assert steps[-2] < 1000 <= steps[-1] == stats.env_steps  # stops once n are sampled
+    assert learner.update_s > clock and stats.learn_s == pytest.approx(learner.update_s - clock)
 
 
 def test_the_lean_gradient_step_equals_rllibs_and_frozen_partners_have_no_optimizer(oracle):

@@ -1,0 +1,93 @@
+"""Every command's bad input is one line on stderr and exit code 2, never a traceback:
+replay, Table II and the pools (the evaluation's own: tests/evaluation/test_evaluate.py)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+import torch
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.policies.learned import random_export
+from hola_ray.pools import POOLS_DIR
+
+
+def one_line(capsys, message: str) -> None:
+    err = capsys.readouterr().err.strip()
+    assert message in err, err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+@pytest.fixture()
+def truncated(tmp_path):
+    path = tmp_path / "cut.pt"
+    torch.save(random_export(PursuitConfig().obs_dim, hidden=(8,)), path)
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 3])
+    return path
+
+
+@pytest.mark.parametrize(
+    ("team", "message"),
+    [
+        (["runs/nowhere/learner.pt"], "no such file or directory"),
+        (["nobody"], "unknown policy 'nobody'"),
+        (["greedy", "vicsek"], "--team needs 1 or 3 names, got 2"),
+        (["truncated"], "not a torch export"),
+    ],
+)
+def test_replay_bad_inputs(tmp_path, capsys, truncated, team, message):
+    from hola_ray.replay import main
+
+    team = [str(truncated) if t == "truncated" else t for t in team]
+    assert main(["--team", *team, "--out", str(tmp_path / "r")]) == 2
+    one_line(capsys, message)
+
+
+def test_replay_refuses_another_scenario_for_a_learner_in_one_line(tmp_path, capsys):
+    from hola_ray.replay import main
+
+    one = PursuitConfig(n_evaders=1)
+    path = tmp_path / "one.pt"
+    torch.save(random_export(one.obs_dim, hidden=(8,)) | {"scenario": one.to_dict()}, path)
+    assert main(["--team", str(path), "--evaders", "2", "--out", str(tmp_path / "r")]) == 2
+    one_line(capsys, "was trained for 3 pursuers vs 1 evader(s); this scenario has 3 vs 2")
+
+
+def test_table_ii_bad_input(capsys):
+    from hola_ray.evaluation.table import main
+
+    assert main(["--episodes", "0"]) == 2
+    one_line(capsys, "--episodes must be at least 1")
+
+
+def test_pools_bad_inputs(tmp_path, capsys):
+    from hola_ray.pools import main
+
+    assert main(["show", "--pool", "nope"]) == 2
+    one_line(capsys, "unknown pool 'nope'")
+    broken = tmp_path / "broken"
+    shutil.copytree(POOLS_DIR / "het", broken)
+    (broken / "manifest.json").write_text("{ not json")
+    assert main(["show", "--pool", str(broken)]) == 2
+    one_line(capsys, "not valid JSON")
+    shutil.rmtree(broken)
+    shutil.copytree(POOLS_DIR / "het", broken)
+    manifest = json.loads((broken / "manifest.json").read_text())
+    (broken / "d3qn-g-1.pt").write_bytes(b"\0" * 64)  # changed after the build
+    assert main(["show", "--pool", str(broken)]) == 2
+    one_line(capsys, "the file changed after the build")
+    # a file that matches its manifest but is no torch export
+    (broken / "d3qn-g-1.pt").write_text("not torch")
+    from hola_ray.pools import sha256
+
+    manifest["members"]["d3qn-g-1"]["sha256"] = sha256(broken / "d3qn-g-1.pt")
+    (broken / "manifest.json").write_text(json.dumps(manifest))
+    from hola_ray.evaluate import main as evaluate
+
+    learner = tmp_path / "mine.pt"
+    torch.save(random_export(PursuitConfig().obs_dim, hidden=(8,)), learner)
+    assert evaluate([str(learner), "--pool", str(broken)]) == 2
+    one_line(capsys, "member d3qn-g-1")
