@@ -281,6 +281,9 @@ def test_train_runs_updates_until_its_steps_and_logs_each(oracle):
     """`train(n)` runs PPO iterations of `train_batch` steps until n are sampled, logs one
     row per iteration, and takes the update's time from the learner's own clock."""
     learner = oracle.algo.learner_group._learner
+    # one iteration first: the env runners' step counts also hold what earlier tests of
+    # the module sampled by hand, and RLlib reports them with the next iteration
+    oracle.train(1, progress=False)
     clock = learner.update_s
     stats = oracle.train(1000, progress=False)  # batches of 400: three iterations
     steps = [row["env_steps"] for row in stats.iteration_log]
