@@ -47,7 +47,11 @@ GEN_PREFIX = "gen_"
 
 
 def best_score(row: Mapping[str, Any]) -> tuple[float, float]:
-    """What `best.pt` is judged on: learner success, then lower learner collision."""
+    """What `best.pt` is judged on, the one rule for every method: success with the
+    validation teammates, then lower collision there; a run without validation teammates
+    falls back on its own judging (learner success, then lower learner collision)."""
+    if row.get("val_success") not in (None, ""):
+        return float(row["val_success"]), -float(row["val_collision"])
     return float(row["learner_success"]), -float(row["learner_collision"])
 
 
@@ -144,15 +148,23 @@ class RunDir:
             kept = json.loads(self.best_info.read_text())
             if best_score(row) <= best_score(kept):
                 return False
+        validated = row.get("val_success") not in (None, "")
         info = {
             "generation": g,
             "learner_success": float(row["learner_success"]),
             "learner_collision": float(row["learner_collision"]),
             "learner_length": float(row["learner_length"]),
             "env_steps": int(row.get("env_steps", 0)),
-            "judged_by": "highest learner_success, then lowest learner_collision, over the "
-            "generations' own judging (self-play rollout, or the Grapher's hyperedges)",
+            "judged_by": (
+                "highest val_success, then lowest val_collision: the learner with the "
+                "validation teammates"
+                if validated
+                else "highest learner_success, then lowest learner_collision, over the "
+                "generations' own judging (self-play rollout, or the Grapher's hyperedges)"
+            ),
         }
+        if validated:
+            info |= {k: float(row[k]) for k in ("val_success", "val_collision")}
         _atomic_torch_save(dict(export), self.best)
         _atomic_write_text(self.best_info, json.dumps(info, indent=1))
         return True
