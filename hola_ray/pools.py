@@ -274,13 +274,14 @@ def load_pool(pool: str | Path, config: PursuitConfig) -> dict[str, Policy]:
 
 # ---- building -------------------------------------------------------------------------------
 def commit_id() -> str:
-    """The repository's HEAD, with "-dirty" when tracked files differ from it."""
+    """The repository's HEAD, with "-dirty" when tracked files other than the pools' own
+    (which a build writes) differ from it."""
     try:
         head = subprocess.run(
             ["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True
         ).stdout.strip()
         dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", ".", ":!pools"],
             cwd=ROOT,
             capture_output=True,
             text=True,
