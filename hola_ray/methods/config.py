@@ -9,6 +9,7 @@ and the allowed range, and unknown keys are rejected.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -190,6 +191,10 @@ class OracleConfig:
     gpus_per_learner: float = 0.0
     """GPUs for the PPO learner (RLlib's num_gpus_per_learner); 0 = the learner runs on the
     CPU in the driver. A GPU speeds up the paper's 256×256 update; sampling stays on CPUs"""
+    horizon_terminates: bool = False
+    """true reproduces RLlib's own marking, for ablations only: an episode cut at the
+    horizon counts as terminated and nothing bootstraps V(s_T) (the default: truncated,
+    hola_ray/env/horizon.py)"""
     sampler: str = "batched"
     """how env runners sample: batched (hola_ray/oracle/batched_runner.py: every vector env
     in one compiled step, one forward pass per module, episodes built in bulk) or
@@ -219,6 +224,12 @@ class OracleConfig:
         _finite(s, self, "gpus_per_learner", 0.0, 64.0, "in [0, 64] (0 = CPU)")
         require(
             self.budget in BUDGETS, "oracle.budget", f"one of {', '.join(BUDGETS)}", self.budget
+        )
+        require(
+            isinstance(self.horizon_terminates, bool),
+            "oracle.horizon_terminates",
+            "true or false",
+            self.horizon_terminates,
         )
         require(
             self.sampler in SAMPLERS,
@@ -449,6 +460,31 @@ class RunConfig:
             state, activation="tanh", dist=self.oracle.action_dist, features=self.model_features
         )
         return export | {"scenario": self.env.to_dict()}
+
+    def generation_zero_key(self) -> str | None:
+        """What generation 0 (the pre-trained population and G_0) depends on, as a string:
+        two runs with the same key build the same G_0 on one machine, so one may adopt the
+        other's (`Trainer(adopt_from=…)`). None for methods whose population is not MEP's
+        (self-play, FCP, PBT)."""
+        if self.strategy.population != "mep":
+            return None
+        oracle = {
+            k: v
+            for k, v in dataclasses.asdict(self.oracle).items()
+            if k not in ("env_steps", "budget", "gpus_per_learner")
+        }
+        oracle["hidden"] = list(self.oracle.hidden)
+        return json.dumps(
+            {
+                "seed": self.seed,
+                "env": self.env.to_dict(),
+                "oracle": oracle,
+                "pretrain": dataclasses.asdict(self.pretrain),
+                "initial_size": self.population.initial_size,
+                "episodes_per_edge": self.grapher.episodes_per_edge,
+            },
+            sort_keys=True,
+        )
 
     @property
     def strategy(self) -> Method:

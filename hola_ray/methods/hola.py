@@ -64,6 +64,10 @@ class Trainer:
     saved: Callable[[int], Any] | None = None
     """called with g once generation g (and the files at the top) is on disk; and after a
     resume has written those files again (the experiment mirrors a trial's folder with it)"""
+    adopt_from: tuple[Path, ...] = ()
+    """run directories whose generation 0 a fresh run takes instead of pre-training, when
+    one of them built it with the same `generation_zero_key` (an experiment's methods of
+    one seed that share MEP's population: the same G_0, trained once)"""
 
     def __post_init__(self) -> None:
         self.run = RunDir(self.run_dir)
@@ -90,6 +94,7 @@ class Trainer:
 
     def _fit(self) -> list[dict[str, Any]]:
         self.run.create(self.config.to_yaml())
+        self._adopt()
         here = ray.get_runtime_context().get_node_id()
         self.coord = Coordinator.options(
             name=coordinator_name(str(self.run_dir)),
@@ -128,6 +133,34 @@ class Trainer:
         return rows
 
     # ---- generation 0 -------------------------------------------------------------------
+    def _adopt(self) -> None:
+        """A fresh run whose generation 0 another run already built (`adopt_from`, the same
+        `generation_zero_key`) takes it instead of pre-training again."""
+        key = self.config.generation_zero_key()
+        if key is None or self.run.last_completed() is not None:
+            return
+        for folder in self.adopt_from:
+            donor = RunDir(folder)
+            marker = donor.generation(0) / KEY_FILE
+            if Path(folder).resolve() == self.run.root.resolve() or not marker.is_file():
+                continue
+            if marker.read_text() != key:
+                continue
+            p = self.config.population
+            self.run.adopt_generation_zero(
+                donor,
+                {
+                    "max_size": p.max_size,
+                    "top_m": p.top_m,
+                    "phi_kind": self.config.phi_kind,
+                    "phi_shift": p.phi_shift,
+                    "joins": self.config.strategy.joins,
+                    "rank_beta": p.rank_beta,
+                },
+            )
+            self._say(f"gen 0: adopted from {donor.root.name} (the same pre-training and G_0)")
+            return
+
     def _pretrain(self) -> dict[str, Any]:
         c = self.config
         self.coord.set_phase.remote("pretrain")
@@ -172,6 +205,9 @@ class Trainer:
             "coordinator_s": round(time.perf_counter() - start, 4),
         }
         row = ray.get(self.coord.commit.remote(0, metrics, None, None, stats.iteration_log))
+        key = c.generation_zero_key()
+        if key is not None:  # what another run of the same pre-training may adopt
+            (self.run.generation(0) / KEY_FILE).write_text(key)
         self._say(
             f"gen 0: {built} in {pretrain_s:.0f}s; G_0 success {row['population_success']:.0%}, "
             f"return {row['population_return']:.1f}"
@@ -486,6 +522,9 @@ def fcp_seed(run_seed: int, agent: int) -> int:
     """The seed of FCP's self-play agent `agent`: apart from the run's own and each other's."""
     return run_seed + 1000 * (agent + 1)
 
+
+KEY_FILE = "generation_zero_key.json"
+"""in a generation-0 folder: the `generation_zero_key` it was built with"""
 
 VALIDATION_SEED = 90_001
 """Validation episodes' seeds: VALIDATION_SEED + the run's seed, apart from the zero-shot

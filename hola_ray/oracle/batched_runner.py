@@ -102,6 +102,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         # weights (`set_state`) copies into those tensors, so the actor follows every push
         self._actors: dict[str, tuple[object, MLPPolicy | None]] = {}
         self._partners: _PartnerStack | None = None
+        self._horizon_terminates = bool(
+            self.config.learner_config_dict.get("horizon_terminates", False)
+        )
 
     # ---- episodes -----------------------------------------------------------------------
     def _start(self, mask: np.ndarray) -> None:
@@ -306,6 +309,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         episode.env_t_started = e.env_t_started
         episode.env_t = e.env_t_started + n
         truncated = bool(done and buf.truncated[stop - 1, b])
+        horizon_ends = truncated and self._horizon_terminates  # the ablation's old marking
         # The horizon truncates: the agents alive at it are truncated, not terminated, so
         # the learner bootstraps V(s_T) there. (RLlib's own runner marks every agent of an
         # episode whose agents are all done terminated, the horizon's too.)
@@ -334,8 +338,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                     Columns.ACTION_LOGP: buf.logp[e.row : e.row + k, b, i].copy(),
                     WEIGHTS_SEQ_NO: np.full(k, self._weights_seq_no, dtype=np.int64),
                 },
-                terminated=disabled or (done and not truncated),
-                truncated=truncated and k == n and not disabled,
+                terminated=disabled or (done and (horizon_ends or not truncated)),
+                truncated=truncated and k == n and (horizon_ends or not disabled),
                 t_started=t0,
                 len_lookback_buffer=0,
             )
@@ -343,7 +347,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             episode.agent_t_started[agent] = t0
             mapping = list(range(t0, t0 + k + 1)) + [SKIP] * (n - k)
             episode.env_t_to_agent_t[agent] = InfiniteLookbackBuffer(data=mapping, lookback=0)
-        episode.is_terminated = done and not truncated
+        episode.is_terminated = done and (horizon_ends or not truncated)
         episode.is_truncated = truncated
         episode.custom_data["seed"] = e.seed  # replays as PursuitEnv.reset(seed=…)
         now = time.perf_counter()

@@ -59,8 +59,10 @@ class _RepushOnRecreate(RLlibCallback):
         if pushed is not None:
             pushed.push(env_runner_group, remote_ids=list(env_runner_indices), local=False)
 
-    def on_episode_end(self, *, episode, **kwargs) -> None:
-        horizon_is_truncation(episode)
+    def on_episode_end(self, *, episode, env_runner=None, **kwargs) -> None:
+        config = getattr(env_runner, "config", None)
+        if not (config and config.learner_config_dict.get("horizon_terminates", False)):
+            horizon_is_truncation(episode)
 
 
 @dataclass
@@ -189,7 +191,9 @@ class Oracle:
             )
             for m in self.modules
         }
-        learner_extra = {"mep_alpha": self.config.pretrain.alpha, "mep_modules": self.members}
+        extra = {"horizon_terminates": o.horizon_terminates}  # read by the env runners
+        if self.mep:
+            extra |= {"mep_alpha": self.config.pretrain.alpha, "mep_modules": self.members}
         return (
             PPOConfig()
             .environment(ENV_NAME, env_config=env.to_dict())
@@ -230,7 +234,7 @@ class Oracle:
             .learners(
                 num_gpus_per_learner=o.gpus_per_learner,
                 learner_class=OracleLearner,
-                learner_config_dict=learner_extra if self.mep else {},
+                learner_config_dict=extra,
             )
             .callbacks(_RepushOnRecreate)
             .fault_tolerance(restart_failed_env_runners=True)

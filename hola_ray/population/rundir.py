@@ -226,6 +226,30 @@ class RunDir:
         _fsync_dir(self.generations)
         return final
 
+    def adopt_generation_zero(self, donor: RunDir, population: Mapping[str, Any]) -> None:
+        """Make `donor`'s generation 0 (its pre-trained members and G_0) this run's own:
+        the members' files, then the generation folder (renamed into place, so it arrives
+        whole), its state's population settings replaced by `population` (this run's
+        method: φ kind, acceptance, sizes)."""
+        state = donor.read_json(0, "state.json")
+        nodes = [int(v) for v in state["population"]["slots"]]
+        self.members.mkdir(parents=True, exist_ok=True)
+        for v in nodes:
+            for source in (donor.member_export(v), donor.member_state(v)):
+                shutil.copyfile(source, self.members / source.name)
+        tmp = self.generations / f".tmp_{GEN_PREFIX}0000_{os.getpid()}"
+        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.copytree(donor.generation(0), tmp)
+        state["population"] |= dict(population)
+        (tmp / "state.json").write_text(json.dumps(state, indent=1))
+        metrics = json.loads((tmp / "metrics.json").read_text())
+        metrics["adopted_from"] = donor.root.name
+        (tmp / "metrics.json").write_text(json.dumps(metrics, indent=1))
+        _fsync_dir(tmp)
+        os.rename(tmp, self.generation(0))
+        _fsync_dir(self.generations)
+        self.rewrite_metrics_csv()
+
     def read_json(self, g: int, name: str) -> Any:
         return json.loads((self.generation(g) / name).read_text())
 
