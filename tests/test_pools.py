@@ -179,5 +179,8 @@ def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):
     for package in ("methods", "oracle", "population"):
         for source in (root / package).rglob("*.py"):
             text = source.read_text()
-            for word in ("load_pool", "load_member", "read_manifest", "POOLS_DIR"):
+            for word in ("load_pool(", "read_manifest(", "POOLS_DIR", "import pools"):
                 assert word not in text, (source, word)
+            for line in text.splitlines():  # from the pools: the validation set alone
+                if "hola_ray.pools import" in line:
+                    assert line.strip() == "from hola_ray.pools import load_validation", source
