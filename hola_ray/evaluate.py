@@ -57,9 +57,10 @@ from hola_ray.env.core import BatchedPursuit
 from hola_ray.evaluation.compare import FIELDS, METRICS, compare
 from hola_ray.evaluation.rollout import PolicyError, rollout
 from hola_ray.evaluation.stats import episode_seeds
+from hola_ray.evaluation.teams import play
 from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
 from hola_ray.policies.registry import load_export, load_policy, policy_file
-from hola_ray.pools import POOLS, PoolError, load_pool, pool_dir, sha256
+from hola_ray.pools import EVALUATION_POOLS, POOLS, PoolError, load_pool, pool_dir, sha256
 
 
 class EvaluationError(RuntimeError):
@@ -166,47 +167,6 @@ def pools(names: Sequence[str], partners: Sequence[str], config: PursuitConfig):
         loaded = [load_partner(spec, config) for spec in partners]
         out["partners"] = {f"{n}-{k}": p for k, (n, p) in enumerate(loaded)}
     return out
-
-
-# ---- episodes -------------------------------------------------------------------------------
-def draw_teams(rng: np.random.Generator, episodes: int, n_p: int, members: int) -> np.ndarray:
-    """[episodes, n_p] indices into [learner, member 1 … member M]: the learner (0) in a
-    uniformly random seat, every other seat a uniform draw from the members (1 … M)."""
-    teams = rng.integers(1, members + 1, size=(episodes, n_p))
-    teams[np.arange(episodes), rng.integers(0, n_p, size=episodes)] = 0
-    return teams
-
-
-def partner_combinations(teams: np.ndarray, members: int) -> np.ndarray:
-    """[E] an id per episode of the members beside the learner, as a multiset (seat order
-    and the learner's seat left out): the bootstrap's strata."""
-    mates = np.sort(teams[teams != 0].reshape(teams.shape[0], teams.shape[1] - 1), axis=1)
-    base = members + 1
-    return (mates * base ** np.arange(mates.shape[1])[::-1]).sum(axis=1)
-
-
-def play(
-    learner, members: list, config: PursuitConfig, episodes: int, seeds: Sequence[int]
-) -> dict[str, np.ndarray]:
-    """Every episode's record ([episodes · seeds] per field of `FIELDS`, and `eval_seed`):
-    per seed, `episodes` episodes with drawn teams."""
-    out: dict[str, list[np.ndarray]] = {m: [] for m in (*FIELDS, "eval_seed")}
-    n_p = config.n_pursuers
-    for s in seeds:
-        rng = np.random.default_rng(np.random.SeedSequence([int(s), 7]))
-        teams = draw_teams(rng, episodes, n_p, len(members))
-        result = rollout(config, [learner, *members], episodes, assignment=teams, seed=int(s))
-        learner_seat = teams == 0  # the learner is candidate 0, in one seat per episode
-        out["success"].append(result.success.astype(np.float64))
-        out["collision"].append(result.collision.astype(np.float64))
-        out["length"].append(result.length.astype(np.float64))
-        out["reward"].append(result.team_return / n_p)
-        out["learner_crash"].append(result.crashed[learner_seat].astype(np.float64))
-        mates = result.crashed[~learner_seat].reshape(episodes, n_p - 1)
-        out["teammate_crash"].append(mates.mean(axis=1))
-        out["stratum"].append(partner_combinations(teams, len(members)))
-        out["eval_seed"].append(np.full(episodes, int(s)))
-    return {m: np.concatenate(v) for m, v in out.items()}
 
 
 # ---- BR-Prox score --------------------------------------------------------------------------
@@ -446,7 +406,7 @@ def main(argv: list[str] | None = None) -> int:
             )
         # D3QN-G learners play any number of evaders: the others' scenario, else the paper's
         config = PursuitConfig(n_evaders=evaders.pop()) if evaders else PursuitConfig()
-        names = args.pool if args.pool else ([] if args.partner else list(POOLS))
+        names = args.pool if args.pool else ([] if args.partner else list(EVALUATION_POOLS))
         members = pools(names, args.partner, config)
         loaded = [load_learner(p, config) for p in args.learners]
         called = [name for name, _ in loaded]

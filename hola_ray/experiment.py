@@ -11,6 +11,7 @@ of the base), the seeds and the evaluation:
     methods:                          # method → overrides for its trials ({} for none)
       hola: {}
       sp: {generations: 12}
+      hola_long: {method: hola, pretrain: {env_steps: 1000000}}   # a variant: an ablation row
     seeds: [0, 1, 2]
     parallel: 0                       # trials started at once; 0: all (Ray runs those that fit)
     evaluation: {episodes: 50, seeds: [0, 1, 2], cell_episodes: 10, pools: [hot, het],
@@ -113,9 +114,17 @@ class Experiment:
             methods = dict.fromkeys(methods)
         if not isinstance(methods, Mapping) or not methods:
             raise ConfigError(f"{path}: methods must be a non-empty mapping method → overrides")
-        unknown = sorted(set(methods) - set(METHODS))
-        if unknown:
-            raise ConfigError(f"{path}: unknown method(s) {unknown}; known: {sorted(METHODS)}")
+        for name, over in methods.items():
+            method = (over or {}).get("method", name) if isinstance(over, Mapping) else name
+            if method not in METHODS:
+                raise ConfigError(
+                    f"{path}: {name}: unknown method {method!r}; known: {sorted(METHODS)} (a "
+                    "variant of a method names it in its overrides: `hola_long: {method: hola, …}`)"
+                )
+            if not isinstance(name, str) or "-s" in name or not name.replace("_", "").isalnum():
+                raise ConfigError(
+                    f"{path}: {name!r}: a method or variant name is letters, digits and _ only"
+                )
         seeds = raw["seeds"]
         if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) for s in seeds):
             raise ConfigError(f"{path}: seeds must be a non-empty list of integers")
@@ -177,7 +186,7 @@ class Experiment:
         method, seed = parse_trial(trial)
         base = load_yaml(self.base_path()) or {}
         merged = deep_merge(deep_merge(base, self.overrides), self.methods[method])
-        merged.update(method=method, seed=seed)
+        merged.update(method=self.methods[method].get("method", method), seed=seed)
         return RunConfig.from_dict(merged)
 
 
@@ -234,11 +243,14 @@ def _run_trial(
     driver_node: str | None = None,
     seed: bytes | None = None,
     mirror: bool | None = None,
+    adopt_from: Sequence[str] = (),
 ) -> str:
     """One trial. Where its node sees the experiment directory (one machine, or a shared
-    filesystem), it trains there. Elsewhere it trains in a staging folder of its node (from
-    `seed`, the driver's copy of a partial trial, if given) and mirrors it to the driver's
-    node after every generation (`hola_ray.mirror`). Returns how it stored its folder."""
+    filesystem), it trains there, taking generation 0 from a sibling trial that built the
+    same one (`adopt_from`: the trials of its seed whose methods share MEP's population).
+    Elsewhere it trains in a staging folder of its node (from `seed`, the driver's copy of
+    a partial trial, if given) and mirrors it to the driver's node after every generation
+    (`hola_ray.mirror`). Returns how it stored its folder."""
     import shutil
     import tempfile
 
@@ -252,7 +264,8 @@ def _run_trial(
     if mirror is None:
         mirror = not sees(root, token)
     if not mirror:
-        Trainer(run_config, root, progress=False).fit()
+        donors = tuple(Path(d) for d in adopt_from)
+        Trainer(run_config, root, progress=False, adopt_from=donors).fit()
         return "in place"
     staging = Path(tempfile.gettempdir()) / "hola_ray-trials" / str(token) / root.name
     if seed is not None:
@@ -456,6 +469,7 @@ class Runner:
                         here,
                         pack(self.trial_dir(t)) if partial else None,
                         self.mirror,
+                        self.donors(t),
                     )
                     running[ref] = t
                     started[t] = time.monotonic()
@@ -598,6 +612,7 @@ class Runner:
             t: {
                 "method": parse_trial(t)[0],
                 "seed": parse_trial(t)[1],
+                **self.budget_spent(t),
                 "pools": {
                     p: {k: r[k] for k in METRICS}
                     | {f"{k}_se": r[f"{k}_se"] for k in METRICS}
@@ -634,6 +649,49 @@ class Runner:
             results_table(figure_input, differences, len(self.exp.seeds))
         )
         return results
+
+    def donors(self, trial: str) -> list[str]:
+        """The other trials whose generation 0 this trial may take: the same
+        `generation_zero_key` (seed, scenario, PPO and pre-training settings)."""
+        key = self.configs[trial].generation_zero_key()
+        if key is None:
+            return []
+        return [
+            str(self.trial_dir(t).resolve())
+            for t, c in self.configs.items()
+            if t != trial and c.generation_zero_key() == key
+        ]
+
+    def budget_spent(self, trial: str) -> dict[str, Any]:
+        """What a trial's training took: env steps, the learner's own transitions and
+        gradient steps (cumulative, at its last generation), pre-training env steps, and the
+        wall time of all its generations."""
+        from hola_ray.population.rundir import RunDir
+
+        rows = RunDir(self.trial_dir(trial)).metrics_rows()
+        if not rows:
+            return {}
+        last = rows[-1]
+
+        def number(row, key):
+            value = row.get(key, "")
+            return float(value) if value not in ("", None) else 0.0
+
+        return {
+            "env_steps": int(number(last, "env_steps")),
+            "learner_samples": int(number(last, "learner_samples")),
+            "gradient_steps": int(number(last, "gradient_steps")),
+            "pretrain_env_steps": int(number(rows[0], "pretrain_env_steps")),
+            "train_s": round(
+                sum(
+                    # a generation's wall time; older runs and generation 0: its phases
+                    number(r, "wall_s")
+                    or sum(number(r, k) for k in ("pretrain_s", "oracle_s", "grapher_s", "eval_s"))
+                    for r in rows
+                ),
+                1,
+            ),
+        }
 
     def run(self) -> dict[str, Any]:
         self.train()

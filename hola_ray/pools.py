@@ -67,6 +67,23 @@ class Member:
         return None if self.kind == "handwritten" else f"{self.id}.pt"
 
 
+VALIDATION = "validation"
+"""The validation teammates' pool: built only from what training may see."""
+
+VALIDATION_MEMBERS = (
+    Member("apf-a-3", "APF-A (λ 1.71 m, η 1e-3)", "handwritten"),
+    Member("apf-a-9", "APF-A (λ 0.57 m, η 1e-2)", "handwritten"),
+    Member("apf-a-21", "APF-A (λ 2.86 m, η 1e-1)", "handwritten"),
+    Member("sp-v1", "SP (v1)", "ppo", "configs/pools/sp-v1.yaml"),
+    Member("sp-v2", "SP (v2)", "ppo", "configs/pools/sp-v2.yaml"),
+)
+"""Validation teammates: three fixed APF-A pairs (DACOOP-A's potential field, which no
+evaluation pool member plays as such: three copies, 3 vs 2, 60 episodes, reach 98 % success
+with 12 % collision, 70 % and 10 % slowly, 60 % and 60 %) and two self-play agents of seeds
+no evaluation member or training run uses. Disjoint from the evaluation pools by id and by file hash
+(`load_validation` checks both)."""
+
+
 MEMBERS = {
     m.id: m
     for m in (
@@ -76,15 +93,20 @@ MEMBERS = {
         Member("vicsek", "VICSEK", "handwritten"),
         Member("d3qn-g-1", "D3QN-G (1)", "d3qn", "configs/pools/d3qn-g-1.yaml"),
         Member("d3qn-g-2", "D3QN-G (2)", "d3qn", "configs/pools/d3qn-g-2.yaml"),
+        *VALIDATION_MEMBERS,
     )
 }
 """Every pool member by id."""
 
-POOLS = {
+EVALUATION_POOLS = {
     "hot": ("ppo-1", "ppo-2"),
     "het": ("greedy", "vicsek", "d3qn-g-1", "d3qn-g-2"),
 }
-"""Pool name → member ids (paper: homogeneous = PPO; heterogeneous = the rest)."""
+"""The zero-shot evaluation's pools (paper: homogeneous = PPO; heterogeneous = the rest):
+used for the final figures alone, never in training, selection or tuning."""
+
+POOLS = {**EVALUATION_POOLS, VALIDATION: tuple(m.id for m in VALIDATION_MEMBERS)}
+"""Pool name → member ids: the evaluation pools and the validation set."""
 
 
 class PoolError(RuntimeError):
@@ -214,6 +236,30 @@ def load_member(folder: Path, mid: str, entry: dict[str, Any], config: PursuitCo
     if trained.n_evaders == config.n_evaders:
         return policy
     return ScenarioAdapter(config, policy, trained.n_evaders)
+
+
+def load_validation(pool: str | Path, config: PursuitConfig) -> dict[str, Policy]:
+    """The validation teammates (`VALIDATION` or a folder with a manifest) for `config`'s
+    scenario, every file verified; refused when it shares a member id or a file with an
+    evaluation pool, so no evaluation teammate can enter training, selection or tuning."""
+    if str(pool) in EVALUATION_POOLS:
+        raise PoolError(f"{pool} is an evaluation pool: it never validates training")
+    folder = pool_dir(pool)
+    manifest = read_manifest(folder)
+    held_out = {mid for ids in EVALUATION_POOLS.values() for mid in ids}
+    hashes = {
+        entry.get("sha256")
+        for name in EVALUATION_POOLS
+        if (POOLS_DIR / name / MANIFEST).is_file()
+        for entry in read_manifest(POOLS_DIR / name)["members"].values()
+        if entry.get("sha256")
+    }
+    for mid, entry in manifest["members"].items():
+        if mid in held_out:
+            raise PoolError(f"{folder}: member {mid} belongs to an evaluation pool")
+        if entry.get("sha256") in hashes:
+            raise PoolError(f"{folder}: member {mid}'s file is an evaluation pool member's")
+    return load_pool(folder, config)
 
 
 def load_pool(pool: str | Path, config: PursuitConfig) -> dict[str, Policy]:

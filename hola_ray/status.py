@@ -23,6 +23,15 @@ from hola_ray.population.rundir import RunDir
 
 _METRICS = (
     "env_steps",
+    "learner_samples",
+    "val_success",
+    "val_collision",
+    "val_learner_crash",
+    "members_success",
+    "members_success_min",
+    "members_crash",
+    "population_team_success",
+    "population_team_crash",
     "learner_success",
     "learner_return",
     "learner_collision",

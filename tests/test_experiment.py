@@ -191,3 +191,33 @@ def test_the_shipped_experiments_load(name):
     if name != "smoke":  # every method, three seeds, the paper's 3 vs 2
         assert set(exp.methods) == set(METHODS) and exp.seeds == (0, 1, 2)
         assert all(exp.run_config(t).env.n_evaders == 2 for t in exp.trials())
+
+
+def test_a_variant_is_a_named_method_with_its_own_overrides(tmp_path):
+    """Ablation rows: `hola_long: {method: hola, …}` trains method hola with its overrides,
+    under its own name; an unknown method or a name that would break trial names is an
+    error before anything runs."""
+    from hola_ray.env.config import ConfigError
+
+    config = {
+        "base": str(ROOT / "configs" / "smoke.yaml"),
+        "methods": {"hola": {}, "hola_long": {"method": "hola", "pretrain": {"env_steps": 4000}}},
+        "seeds": [1],
+        "evaluation": {"pairs": [["hola_long", "hola"]]},
+    }
+    path = tmp_path / "x.yaml"
+    path.write_text(yaml.safe_dump(config))
+    exp = Experiment.from_yaml(path)
+    assert exp.trials() == ["hola-s1", "hola_long-s1"]
+    long = exp.run_config("hola_long-s1")
+    assert (long.method, long.pretrain.env_steps, long.seed) == ("hola", 4000, 1)
+    assert exp.run_config("hola-s1").pretrain.env_steps == 2000
+    assert exp.pairs() == [("hola", "hola_long"), ("hola_long", "hola")]
+    for methods, message in (
+        ({"hola_x": {"method": "holla"}}, "unknown method 'holla'"),
+        ({"nope": {}}, "unknown method 'nope'"),
+        ({"hola-sx": {"method": "hola"}}, "letters, digits and _ only"),
+    ):
+        path.write_text(yaml.safe_dump(config | {"methods": methods, "evaluation": {}}))
+        with pytest.raises(ConfigError, match=message):
+            Experiment.from_yaml(path)

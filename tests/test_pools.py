@@ -118,3 +118,69 @@ def test_d3qn_g_trained_against_one_evader_plays_two_as_it_is():
         assert result.episodes == 8
     with pytest.raises(PoolError, match="PPO \\(1\\) was trained with 2 evader"):
         load_pool("hot", dataclasses.replace(TWO, n_evaders=3))
+
+
+def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):
+    """The validation set shares no member id and no file with the evaluation pools; a
+    validation folder that does is refused, and so is a run config naming an evaluation
+    pool; and no module of training or selection loads a pool other than through
+    `load_validation`."""
+    from pathlib import Path
+
+    from hola_ray.env.config import ConfigError
+    from hola_ray.methods.config import RunConfig
+    from hola_ray.pools import (
+        EVALUATION_POOLS,
+        POOLS_DIR,
+        VALIDATION,
+        load_validation,
+        pool_dir,
+        read_manifest,
+    )
+
+    validation = read_manifest(pool_dir(VALIDATION))["members"]
+    held_out = {mid for ids in EVALUATION_POOLS.values() for mid in ids}
+    assert not set(validation) & held_out
+    hashes = {
+        e["sha256"]
+        for name in EVALUATION_POOLS
+        for e in read_manifest(pool_dir(name))["members"].values()
+        if e.get("sha256")
+    }
+    assert not {e.get("sha256") for e in validation.values()} & hashes
+    assert sorted(load_validation(VALIDATION, ONE)) == sorted(validation)
+
+    for name in EVALUATION_POOLS:  # an evaluation pool, by name or as a folder
+        with pytest.raises(PoolError, match="evaluation pool"):
+            load_validation(name, ONE)
+        with pytest.raises(PoolError, match="belongs to an evaluation pool"):
+            load_validation(POOLS_DIR / name, ONE)
+        with pytest.raises(ConfigError, match="never an evaluation pool"):
+            RunConfig.from_dict({"validation": {"pool": name}})
+    # a validation folder holding a copy of an evaluation member's file, renamed
+    sneaky = tmp_path / "sneaky"
+    sneaky.mkdir()
+    entry = dict(read_manifest(pool_dir("het"))["members"]["d3qn-g-1"])
+    (sneaky / "mine.pt").write_bytes((POOLS_DIR / "het" / entry["file"]).read_bytes())
+    manifest = {
+        "format": POOL_FORMAT,
+        "pool": "sneaky",
+        "commit": "test",
+        "members": {"mine": entry | {"file": "mine.pt", "name": "Mine"}},
+    }
+    (sneaky / MANIFEST).write_text(json.dumps(manifest))
+    with pytest.raises(PoolError, match="an evaluation pool member's"):
+        load_validation(sneaky, ONE)
+
+    from hola_ray.methods import config as run_config
+
+    assert run_config.EVALUATION_POOLS == tuple(EVALUATION_POOLS)  # what a config refuses
+    root = Path(__file__).resolve().parents[1] / "hola_ray"
+    for package in ("methods", "oracle", "population"):
+        for source in (root / package).rglob("*.py"):
+            text = source.read_text()
+            for word in ("load_pool(", "read_manifest(", "POOLS_DIR", "import pools"):
+                assert word not in text, (source, word)
+            for line in text.splitlines():  # from the pools: the validation set alone
+                if "hola_ray.pools import" in line:
+                    assert line.strip() == "from hola_ray.pools import load_validation", source

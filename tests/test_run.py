@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import signal
 import subprocess
@@ -52,6 +53,19 @@ def test_smoke_run_writes_the_whole_run_directory(smoke_run):
     rows = r.metrics_rows()
     assert [row["generation"] for row in rows] == [0, 1]
     assert rows[1]["env_steps"] >= 2000 and 0.0 <= rows[1]["learner_success"] <= 1.0
+    # the learner's own transitions and gradient steps, beside the env steps
+    assert 0 < rows[1]["learner_samples"] <= rows[1]["env_steps"]
+    assert rows[1]["gradient_steps"] >= 2 and rows[1]["wall_s"] > 0
+    # the validation teammates judged generation 1, and best.pt was chosen on them
+    assert 0.0 <= rows[1]["val_success"] <= 1.0 and 0.0 <= rows[1]["val_learner_crash"] <= 1.0
+    assert json.loads((out / "best.json").read_text())["judged_by"].startswith("highest val_")
+    # the population measured as a team, every generation: each member with copies of
+    # itself, and teams drawn from it
+    for row in rows:
+        for key in ("members_success", "members_crash", "population_team_success"):
+            assert 0.0 <= row[key] <= 1.0, key
+        assert row["members_success_min"] <= row["members_success"]
+    assert "members_success" in tags and "val_success" in tags
     # The exported learner plays without Ray or RLlib.
     config = PursuitConfig.from_yaml(SMOKE)
     learner = MLPPolicy.load(config, r.learner)
@@ -60,7 +74,6 @@ def test_smoke_run_writes_the_whole_run_directory(smoke_run):
     # Member checkpoints load the same way.
     MLPPolicy.load(config, r.member_export(0))
     # The final learner and the accepted population are kept apart and named.
-    import json
 
     info = json.loads((out / "learner.json").read_text())
     state = json.loads((r.generation(1) / "state.json").read_text())

@@ -117,7 +117,9 @@ class PursuitEnv(ParallelEnv):
         truncations = {a: truncated for a in live}
         if ended or truncated:
             metrics = self.core.episode_metrics(0)
-            infos = {a: dict(metrics) for a in live}
+            # `terminated`: whether the agent's own episode ended here (a truncated one
+            # did not: `hola_ray.env.horizon`)
+            infos = {a: dict(metrics) | {"terminated": terminations[a]} for a in live}
         else:
             infos = {a: {} for a in live}
         self.agents = [a for a in live if not (terminations[a] or truncations[a])]

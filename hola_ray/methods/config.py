@@ -9,6 +9,7 @@ and the allowed range, and unknown keys are rejected.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ from hola_ray.env.layout import ObsLayout
 from hola_ray.policies.learned import DISTRIBUTIONS, export_from_rllib
 
 SAMPLERS = ("batched", "pettingzoo")
+BUDGETS = ("env_steps", "learner_samples")
 """oracle.sampler: how the Oracle's env runners sample (OracleConfig.sampler)."""
 
 
@@ -140,9 +142,16 @@ class OracleConfig:
     """The multi-agent PPO that trains the learner each generation (paper Appendix)."""
 
     env_steps: int = 1_000_000
-    """environment steps the Oracle trains the learner for in one generation"""
+    """the Oracle's budget for one generation, counted as `budget` says"""
     train_batch: int = 1024
-    """environment steps per PPO update"""
+    """the size of one PPO update's batch, counted as `budget` says"""
+    budget: str = "env_steps"
+    """what `env_steps` and `train_batch` count: env_steps (environment steps, the paper's
+    budget: self-play's learner then learns from every seat of a step, a single learner from
+    one, a third of the data at 3 pursuers) or learner_samples (the trained module's own
+    transitions, one per seat it plays per step: every method's learner consumes the same
+    number and takes the same number of gradient steps; a self-play batch then spans a third
+    of the environment steps)"""
     minibatch: int = 256
     """SGD minibatch size (agent steps of the learner)"""
     epochs: int = 20
@@ -182,6 +191,10 @@ class OracleConfig:
     gpus_per_learner: float = 0.0
     """GPUs for the PPO learner (RLlib's num_gpus_per_learner); 0 = the learner runs on the
     CPU in the driver. A GPU speeds up the paper's 256×256 update; sampling stays on CPUs"""
+    horizon_terminates: bool = False
+    """true reproduces RLlib's own marking, for ablations only: an episode cut at the
+    horizon counts as terminated and nothing bootstraps V(s_T) (the default: truncated,
+    hola_ray/env/horizon.py)"""
     sampler: str = "batched"
     """how env runners sample: batched (hola_ray/oracle/batched_runner.py: every vector env
     in one compiled step, one forward pass per module, episodes built in bulk) or
@@ -209,6 +222,15 @@ class OracleConfig:
         _finite(s, self, "grad_clip", 0.0, 1e6, "in [0, 1e6] (0 = none)")
         _finite(s, self, "proximity_length", 0.0, 10.0, "in [0, 10] (0 = off)")
         _finite(s, self, "gpus_per_learner", 0.0, 64.0, "in [0, 64] (0 = CPU)")
+        require(
+            self.budget in BUDGETS, "oracle.budget", f"one of {', '.join(BUDGETS)}", self.budget
+        )
+        require(
+            isinstance(self.horizon_terminates, bool),
+            "oracle.horizon_terminates",
+            "true or false",
+            self.horizon_terminates,
+        )
         require(
             self.sampler in SAMPLERS,
             "oracle.sampler",
@@ -329,6 +351,40 @@ class GrapherConfig:
         _positive_int("grapher", self, "edges_per_learner", minimum=0)
 
 
+EVALUATION_POOLS = ("hot", "het")
+"""the zero-shot evaluation's pools: never a run's validation teammates"""
+
+
+@dataclass(frozen=True)
+class ValidationConfig:
+    """Validation teammates (the held-out protocol of jax-aht): after every generation the
+    learner plays with teammates drawn from a set disjoint from the evaluation pools, built
+    only from what training may see; every method keeps as `best.pt` the generation that
+    does best there (highest success, then lowest collision)."""
+
+    pool: str = "validation"
+    """the committed validation set (`pools/validation`, `python -m hola_ray.pools show
+    --pool validation`), a folder holding such a manifest, or none (best.pt then follows
+    each method's own judging)"""
+    episodes: int = 96
+    """episodes per validation: the learner in a random seat, teammates drawn per episode"""
+
+    def validate(self) -> None:
+        _positive_int("validation", self, "episodes")
+        ok = isinstance(self.pool, str) and self.pool not in EVALUATION_POOLS and self.pool
+        require(
+            bool(ok),
+            "validation.pool",
+            "validation, none or a folder with a pool manifest; never an evaluation pool "
+            f"({', '.join(EVALUATION_POOLS)})",
+            self.pool,
+        )
+
+    @property
+    def enabled(self) -> bool:
+        return self.pool != "none"
+
+
 @dataclass(frozen=True)
 class RunConfig:
     """One HOLA-Drone training run: method, budget and every sub-config."""
@@ -354,6 +410,8 @@ class RunConfig:
     """FCP's self-play partners (method fcp only)"""
     pbt: PBTConfig = field(default_factory=PBTConfig)
     """PBT's exploit and explore (method pbt only)"""
+    validation: ValidationConfig = field(default_factory=ValidationConfig)
+    """validation teammates: which generation every method keeps as best.pt"""
 
     def __post_init__(self) -> None:
         require(
@@ -369,6 +427,7 @@ class RunConfig:
         self.grapher.validate()
         self.fcp.validate()
         self.pbt.validate()
+        self.validation.validate()
         if self.strategy.population == "fcp":
             members = 3 * self.fcp.agents
             require(
@@ -402,6 +461,31 @@ class RunConfig:
         )
         return export | {"scenario": self.env.to_dict()}
 
+    def generation_zero_key(self) -> str | None:
+        """What generation 0 (the pre-trained population and G_0) depends on, as a string:
+        two runs with the same key build the same G_0 on one machine, so one may adopt the
+        other's (`Trainer(adopt_from=…)`). None for methods whose population is not MEP's
+        (self-play, FCP, PBT)."""
+        if self.strategy.population != "mep":
+            return None
+        oracle = {
+            k: v
+            for k, v in dataclasses.asdict(self.oracle).items()
+            if k not in ("env_steps", "budget", "gpus_per_learner")
+        }
+        oracle["hidden"] = list(self.oracle.hidden)
+        return json.dumps(
+            {
+                "seed": self.seed,
+                "env": self.env.to_dict(),
+                "oracle": oracle,
+                "pretrain": dataclasses.asdict(self.pretrain),
+                "initial_size": self.population.initial_size,
+                "episodes_per_edge": self.grapher.episodes_per_edge,
+            },
+            sort_keys=True,
+        )
+
     @property
     def strategy(self) -> Method:
         """The method this run trains with."""
@@ -426,6 +510,7 @@ class RunConfig:
             ("grapher", GrapherConfig),
             ("fcp", FCPConfig),
             ("pbt", PBTConfig),
+            ("validation", ValidationConfig),
         ):
             if name in kwargs:
                 kwargs[name] = sub(**_fields(sub, kwargs[name], f"{name}."))
@@ -463,7 +548,7 @@ class RunConfig:
             "seed": self.seed,
             "env": self.env.to_dict(),
         }
-        for name in ("oracle", "pretrain", "population", "grapher", "fcp", "pbt"):
+        for name in ("oracle", "pretrain", "population", "grapher", "fcp", "pbt", "validation"):
             out[name] = dataclasses.asdict(getattr(self, name))
         out["oracle"]["hidden"] = list(self.oracle.hidden)
         out["pbt"]["perturb"] = list(self.pbt.perturb)

@@ -27,6 +27,8 @@ import ray
 from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
 from hola_ray.evaluation.rollout import rollout
+from hola_ray.evaluation.stats import mean_and_se
+from hola_ray.evaluation.teams import play
 from hola_ray.methods.config import RunConfig
 from hola_ray.oracle import LEARNER, Oracle, member_module
 from hola_ray.policies.learned import MLPPolicy
@@ -62,12 +64,18 @@ class Trainer:
     saved: Callable[[int], Any] | None = None
     """called with g once generation g (and the files at the top) is on disk; and after a
     resume has written those files again (the experiment mirrors a trial's folder with it)"""
+    adopt_from: tuple[Path, ...] = ()
+    """run directories whose generation 0 a fresh run takes instead of pre-training, when
+    one of them built it with the same `generation_zero_key` (an experiment's methods of
+    one seed that share MEP's population: the same G_0, trained once)"""
 
     def __post_init__(self) -> None:
         self.run = RunDir(self.run_dir)
         self.name = run_id(str(self.run.root))
         self.pool = MemberPool(self.config.env.to_dict(), run_name=self.name)
         self.loaded: dict[int, int] = {}  # Oracle partner slot → node whose weights it holds
+        self._validators: list | None = None  # the validation teammates, loaded once
+        self._member_teams: dict[int, dict[str, float]] = {}  # node → its self-play figures
 
     # ---- entry --------------------------------------------------------------------------
     def fit(self) -> list[dict[str, Any]]:
@@ -86,6 +94,7 @@ class Trainer:
 
     def _fit(self) -> list[dict[str, Any]]:
         self.run.create(self.config.to_yaml())
+        self._adopt()
         here = ray.get_runtime_context().get_node_id()
         self.coord = Coordinator.options(
             name=coordinator_name(str(self.run_dir)),
@@ -94,6 +103,7 @@ class Trainer:
         ).remote(self.config.to_dict(), str(self.run.root.resolve()))
         rows: list[dict[str, Any]] = []
         oracle = None
+        self._validation_teammates()  # a missing or refused validation set fails at once
         try:
             last = ray.get(self.coord.last_completed.remote())
             if last is None and self.config.strategy.self_play:
@@ -123,6 +133,34 @@ class Trainer:
         return rows
 
     # ---- generation 0 -------------------------------------------------------------------
+    def _adopt(self) -> None:
+        """A fresh run whose generation 0 another run already built (`adopt_from`, the same
+        `generation_zero_key`) takes it instead of pre-training again."""
+        key = self.config.generation_zero_key()
+        if key is None or self.run.last_completed() is not None:
+            return
+        for folder in self.adopt_from:
+            donor = RunDir(folder)
+            marker = donor.generation(0) / KEY_FILE
+            if Path(folder).resolve() == self.run.root.resolve() or not marker.is_file():
+                continue
+            if marker.read_text() != key:
+                continue
+            p = self.config.population
+            self.run.adopt_generation_zero(
+                donor,
+                {
+                    "max_size": p.max_size,
+                    "top_m": p.top_m,
+                    "phi_kind": self.config.phi_kind,
+                    "phi_shift": p.phi_shift,
+                    "joins": self.config.strategy.joins,
+                    "rank_beta": p.rank_beta,
+                },
+            )
+            self._say(f"gen 0: adopted from {donor.root.name} (the same pre-training and G_0)")
+            return
+
     def _pretrain(self) -> dict[str, Any]:
         c = self.config
         self.coord.set_phase.remote("pretrain")
@@ -157,6 +195,7 @@ class Trainer:
         ray.get(self.coord.record.remote(results))
         metrics = {
             "env_steps": 0,
+            **self._population_as_team(0),
             "pretrain_env_steps": stats.env_steps,
             "pretrain_s": round(pretrain_s, 2),
             "pretrain_env_steps_per_s": round(stats.env_steps_per_s, 1),
@@ -166,6 +205,9 @@ class Trainer:
             "coordinator_s": round(time.perf_counter() - start, 4),
         }
         row = ray.get(self.coord.commit.remote(0, metrics, None, None, stats.iteration_log))
+        key = c.generation_zero_key()
+        if key is not None:  # what another run of the same pre-training may adopt
+            (self.run.generation(0) / KEY_FILE).write_text(key)
         self._say(
             f"gen 0: {built} in {pretrain_s:.0f}s; G_0 success {row['population_success']:.0%}, "
             f"return {row['population_return']:.1f}"
@@ -179,7 +221,13 @@ class Trainer:
         states: list[dict[str, Any]] = []
         parts = []
         for i in range(c.fcp.agents):
-            sp = dataclasses.replace(c, method="sp", seed=fcp_seed(c.seed, i))
+            # FCP's partners, like MEP's, are built in environment steps (`fcp.env_steps`)
+            sp = dataclasses.replace(
+                c,
+                method="sp",
+                seed=fcp_seed(c.seed, i),
+                oracle=dataclasses.replace(c.oracle, budget="env_steps"),
+            )
             oracle = Oracle(sp)
             try:
                 states.append(oracle.weights([LEARNER])[LEARNER])
@@ -224,8 +272,13 @@ class Trainer:
             judged, decision = self._self_play_eval(g, export), None
         else:
             judged, decision = self._judge_in_population(g, export, learner_state, slot)
+        self.coord.set_phase.remote("validation")
+        judged |= self._validate(export) | self._population_as_team(g)
         metrics = {
+            "wall_s": round(time.perf_counter() - start, 2),
             "env_steps": int(prev.get("env_steps", 0)) + stats.env_steps,
+            "learner_samples": int(prev.get("learner_samples", 0)) + stats.learner_samples,
+            "gradient_steps": int(prev.get("gradient_steps", 0)) + stats.gradient_steps,
             "oracle_s": round(oracle_s, 2),
             "oracle_env_steps_per_s": round(stats.env_steps_per_s, 1),
             "oracle_sampled_steps_per_s": round(stats.sampled_steps_per_s, 1),
@@ -367,6 +420,73 @@ class Trainer:
             judged[f"learner_{name}_se"] = round(summary[f"{key}_se"], 4)
         return judged
 
+    def _validate(self, export) -> dict[str, float]:
+        """The learner with the validation teammates (`validation.pool`): in a random seat,
+        its teammates drawn per episode, the same episodes every generation. best.pt is the
+        generation that does best here, for every method."""
+        c = self.config
+        if not c.validation.enabled:
+            return {}
+        start = time.perf_counter()
+        played = play(
+            MLPPolicy(c.env, export),
+            self._validation_teammates(),
+            c.env,
+            c.validation.episodes,
+            [VALIDATION_SEED + c.seed],
+        )
+        out: dict[str, float] = {}
+        for name in ("success", "collision", "learner_crash", "length"):
+            mean, se = mean_and_se(played[name])
+            out[f"val_{name}"], out[f"val_{name}_se"] = round(mean, 4), round(se, 4)
+        out["val_s"] = round(time.perf_counter() - start, 2)
+        return out
+
+    def _validation_teammates(self) -> list:
+        """The validation set's members for this run's scenario (loaded once; refused if
+        it shares a member with an evaluation pool: `hola_ray.pools.load_validation`)."""
+        c = self.config
+        if self._validators is None and c.validation.enabled:
+            from hola_ray.pools import load_validation
+
+            self._validators = list(load_validation(c.validation.pool, c.env).values())
+        return self._validators or []
+
+    def _population_as_team(self, g: int) -> dict[str, float]:
+        """Can the population pursue? Each member as a team of its own copies (its self-play
+        success, collision and the share of its seats that crashed; measured once per
+        node, the mean and the weakest over members), and teams of distinct members drawn
+        from the population (`population_team_*`)."""
+        c = self.config
+        if c.strategy.self_play:
+            return {}
+        nodes = sorted(ray.get(self.coord.slots.remote()))
+        exports = ray.get(self.coord.exports.remote(nodes))
+        episodes, n_p = c.grapher.episodes_per_edge, c.env.n_pursuers
+        for v in nodes:
+            if v not in self._member_teams:
+                result = rollout(
+                    c.env,
+                    [MLPPolicy(c.env, exports[v])] * n_p,
+                    episodes,
+                    seed=edge_seed(c.seed, 0, (v,) * n_p),
+                )
+                self._member_teams[v] = _team_figures(result)
+        own = [self._member_teams[v] for v in nodes]
+        out = {
+            f"members_{k}": round(float(np.mean([f[k] for f in own])), 4)
+            for k in ("success", "collision", "crash")
+        }
+        out["members_success_min"] = round(min(f["success"] for f in own), 4)
+        rng = np.random.default_rng([c.seed, g, 3])
+        teams = np.stack(
+            [rng.choice(len(nodes), n_p, replace=len(nodes) < n_p) for _ in range(episodes)]
+        )
+        policies = [MLPPolicy(c.env, exports[v]) for v in nodes]
+        mixed = rollout(c.env, policies, episodes, assignment=teams, seed=edge_seed(c.seed, g, ()))
+        out |= {f"population_team_{k}": round(v, 4) for k, v in _team_figures(mixed).items()}
+        return out
+
     def _grapher(self, g: int) -> tuple[list[EdgeResult], dict[str, float]]:
         c = self.config
         edges = ray.get(self.coord.edges_to_evaluate.remote(g))
@@ -401,6 +521,23 @@ class Trainer:
 def fcp_seed(run_seed: int, agent: int) -> int:
     """The seed of FCP's self-play agent `agent`: apart from the run's own and each other's."""
     return run_seed + 1000 * (agent + 1)
+
+
+KEY_FILE = "generation_zero_key.json"
+"""in a generation-0 folder: the `generation_zero_key` it was built with"""
+
+VALIDATION_SEED = 90_001
+"""Validation episodes' seeds: VALIDATION_SEED + the run's seed, apart from the zero-shot
+evaluation's (0, 1, 2 …) and Table II's"""
+
+
+def _team_figures(result) -> dict[str, float]:
+    """Success, collision and the share of seats that crashed, of a rollout."""
+    return {
+        "success": float(result.success.mean()),
+        "collision": float(result.collision.mean()),
+        "crash": float(result.crashed.mean()),
+    }
 
 
 def _edge_summary(prefix: str, results: list[EdgeResult]) -> dict[str, float]:

@@ -16,7 +16,10 @@ through a dozen `nn.Module`s per module and step; with the paper's ten partners 
 three quarters of the sampling time. Modules of other classes take RLlib's own forward.
 
 What it reproduces of the reference path (tested against `MultiAgentEnvRunner`): the
-episodes' observations, actions, rewards, terminations and truncations, the agent → module
+episodes' observations, actions, rewards, terminations and truncations (one deliberate
+difference: an episode cut at the horizon is truncated, its live agents not terminated, so
+PPO bootstraps V(s_T) there; RLlib marks every agent of an episode whose agents are all
+done terminated, the horizon's too), the agent → module
 mapping (the runner's `policy_mapping_fn`, called once per agent at the start of every
 episode), the module outputs kept for the learner (action distribution inputs and
 log-probabilities), the unsquash of RLlib's [−1, 1] actions onto the Box, and the env
@@ -99,6 +102,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         # weights (`set_state`) copies into those tensors, so the actor follows every push
         self._actors: dict[str, tuple[object, MLPPolicy | None]] = {}
         self._partners: _PartnerStack | None = None
+        self._horizon_terminates = bool(
+            self.config.learner_config_dict.get("horizon_terminates", False)
+        )
 
     # ---- episodes -----------------------------------------------------------------------
     def _start(self, mask: np.ndarray) -> None:
@@ -303,6 +309,10 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         episode.env_t_started = e.env_t_started
         episode.env_t = e.env_t_started + n
         truncated = bool(done and buf.truncated[stop - 1, b])
+        horizon_ends = truncated and self._horizon_terminates  # the ablation's old marking
+        # The horizon truncates: the agents alive at it are truncated, not terminated, so
+        # the learner bootstraps V(s_T) there. (RLlib's own runner marks every agent of an
+        # episode whose agents are all done terminated, the horizon's too.)
         for i, agent in enumerate(self.agents):
             if not e.live[i]:
                 continue
@@ -328,10 +338,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                     Columns.ACTION_LOGP: buf.logp[e.row : e.row + k, b, i].copy(),
                     WEIGHTS_SEQ_NO: np.full(k, self._weights_seq_no, dtype=np.int64),
                 },
-                # As RLlib records PursuitEnv: an agent that is done when every agent is
-                # done counts as terminated, also at the horizon (so no value bootstrap).
-                terminated=disabled or done,
-                truncated=truncated and k == n,
+                terminated=disabled or (done and (horizon_ends or not truncated)),
+                truncated=truncated and k == n and (horizon_ends or not disabled),
                 t_started=t0,
                 len_lookback_buffer=0,
             )
@@ -339,9 +347,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             episode.agent_t_started[agent] = t0
             mapping = list(range(t0, t0 + k + 1)) + [SKIP] * (n - k)
             episode.env_t_to_agent_t[agent] = InfiniteLookbackBuffer(data=mapping, lookback=0)
-        # As `MultiAgentEpisode.add_env_step` has it: an episode whose agents are all done
-        # is terminated, also when the horizon truncated it.
-        episode.is_terminated = done
+        episode.is_terminated = done and (horizon_ends or not truncated)
         episode.is_truncated = truncated
         episode.custom_data["seed"] = e.seed  # replays as PursuitEnv.reset(seed=…)
         now = time.perf_counter()

@@ -86,6 +86,11 @@ class OracleLearner(PPOTorchLearner):
     update_s: float = 0.0
     """Seconds spent in `update` so far (the learner pipeline and SGD). RLlib's own
     learner_update_timer is a moving average, not a per-iteration time."""
+    samples: int = 0
+    """Transitions of the trained modules this learner consumed so far: every step a
+    trained module acted in the updates' episodes (each seat it played)"""
+    gradient_steps: int = 0
+    """Minibatch gradient steps applied to a trained module so far"""
 
     def update(self, *args, training_data=None, **kwargs):
         start = time.perf_counter()
@@ -94,9 +99,22 @@ class OracleLearner(PPOTorchLearner):
             if episodes is not None and not any(self._trains_on(ep) for ep in episodes):
                 self.metrics.log_value("num_skipped_updates", 1, reduce="sum")
                 return self.metrics.reduce()
+            if episodes is not None:
+                self.samples += sum(self._trained_steps(ep) for ep in episodes)
             return super().update(*args, training_data=training_data, **kwargs)
         finally:
             self.update_s += time.perf_counter() - start
+
+    def _trained_steps(self, episode) -> int:
+        """The steps of a (multi-agent) episode chunk that a trained module acted in."""
+        agents = getattr(episode, "agent_episodes", None)
+        if agents is None:
+            return len(episode)
+        return sum(
+            len(sa)
+            for aid, sa in agents.items()
+            if self.should_module_be_updated(episode.module_for(aid))
+        )
 
     def configure_optimizers_for_module(self, module_id, config=None) -> None:
         if not self.should_module_be_updated(module_id):
@@ -122,6 +140,7 @@ class OracleLearner(PPOTorchLearner):
         if total.grad_fn is None:
             return fwd_out, loss_per_module, {}
         total.backward()
+        self.gradient_steps += 1
         for mid in trained:
             clip = self.config.get_config_for_module(mid).grad_clip
             for name, optim in self.get_optimizers_for_module(mid):

@@ -26,6 +26,7 @@ from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
 from ray.tune.registry import register_env
 
 from hola_ray.env.config import PursuitConfig
+from hola_ray.env.horizon import horizon_is_truncation
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.evaluation.probe import reference_observations
 from hola_ray.methods.config import RunConfig
@@ -49,12 +50,19 @@ register_env(ENV_NAME, _make_env)
 
 
 class _RepushOnRecreate(RLlibCallback):
-    """An env runner that RLlib recreated lost φ and the partner weights: push them again."""
+    """An env runner that RLlib recreated lost φ and the partner weights: push them again.
+    And on RLlib's own (PettingZoo) path, an episode cut at the horizon is truncated, not
+    terminated (`hola_ray.env.horizon`; the batched runner builds its episodes so)."""
 
     def on_env_runners_recreated(self, *, algorithm, env_runner_group, env_runner_indices, **kw):
         pushed = getattr(algorithm, "_hola_pushed", None)
         if pushed is not None:
             pushed.push(env_runner_group, remote_ids=list(env_runner_indices), local=False)
+
+    def on_episode_end(self, *, episode, env_runner=None, **kwargs) -> None:
+        config = getattr(env_runner, "config", None)
+        if not (config and config.learner_config_dict.get("horizon_terminates", False)):
+            horizon_is_truncation(episode)
 
 
 @dataclass
@@ -98,6 +106,11 @@ class TrainStats:
     """mean summed team return of the last iteration's episodes (NaN if none ended)"""
     module_return: dict[str, float]
     """mean return per module over the last iteration's episodes"""
+    learner_samples: int = 0
+    """transitions of the trained module(s) the learner consumed in this call (every seat
+    a trained module played, every step it acted)"""
+    gradient_steps: int = 0
+    """minibatch gradient steps applied to the trained module(s) in this call"""
     iteration_log: tuple[dict[str, float], ...] = ()
     """one row per PPO iteration: env steps so far, return, the trained policies' spread
     (`MLPPolicy.spread` on reference observations, the widest trained module), entropy,
@@ -146,6 +159,12 @@ class Oracle:
             self.modules = self.members if self.mep else [LEARNER, *self.members]
             self.mapping = PartnerMapping(n_p, {m: 1.0 for m in self.members}, learner=not self.mep)
         self.trained = self.members if self.mep else [LEARNER]
+        self.counts_samples = config.oracle.budget == "learner_samples" and not self.mep
+        """`train(n)` counts the learner's own transitions (not env steps); MEP pre-training
+        (every member trained) counts env steps"""
+        self.seats = n_p if config.strategy.self_play and not self.mep else 1
+        """seats the trained learner plays per env step: a learner_samples batch of
+        `train_batch` transitions spans train_batch / seats env steps"""
         self.algo: Algorithm = self._algorithm_config(self.trained, seed).build_algo()
         self._pushed = _Pushed(phi=self.mapping.phi, salt=0, weights={})
         self.algo._hola_pushed = self._pushed  # read by _RepushOnRecreate
@@ -172,7 +191,9 @@ class Oracle:
             )
             for m in self.modules
         }
-        learner_extra = {"mep_alpha": self.config.pretrain.alpha, "mep_modules": self.members}
+        extra = {"horizon_terminates": o.horizon_terminates}  # read by the env runners
+        if self.mep:
+            extra |= {"mep_alpha": self.config.pretrain.alpha, "mep_modules": self.members}
         return (
             PPOConfig()
             .environment(ENV_NAME, env_config=env.to_dict())
@@ -193,7 +214,9 @@ class Oracle:
             )
             .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
             .training(
-                train_batch_size_per_learner=o.train_batch,
+                train_batch_size_per_learner=(
+                    -(-o.train_batch // self.seats) if self.counts_samples else o.train_batch
+                ),
                 minibatch_size=o.minibatch,
                 num_epochs=o.epochs,
                 lr=o.lr,
@@ -211,7 +234,7 @@ class Oracle:
             .learners(
                 num_gpus_per_learner=o.gpus_per_learner,
                 learner_class=OracleLearner,
-                learner_config_dict=learner_extra if self.mep else {},
+                learner_config_dict=extra,
             )
             .callbacks(_RepushOnRecreate)
             .fault_tolerance(restart_failed_env_runners=True)
@@ -245,15 +268,18 @@ class Oracle:
         _Pushed(self._pushed.phi, salt, {}).push(self.algo.env_runner_group)
 
     # ---- training -----------------------------------------------------------------------
-    def train(self, env_steps: int, desc: str = "oracle", progress: bool = True) -> TrainStats:
-        """Run PPO updates until at least `env_steps` environment steps were sampled."""
+    def train(self, budget: int, desc: str = "oracle", progress: bool = True) -> TrainStats:
+        """Run PPO updates until `budget` is spent: environment steps sampled, or with
+        `oracle.budget: learner_samples` the learner's own transitions consumed."""
         done = iterations = 0
+        env_steps = 0
         wall = 0.0
-        learn_before = self._update_seconds()
+        learn_before, samples_before, grads_before = self._learner_counts()
         result: dict[str, Any] = {}
         log: list[dict[str, float]] = []
-        with progress_bar(env_steps, desc, "step", enabled=progress) as bar:
-            while done < env_steps:
+        unit = "sample" if self.counts_samples else "step"
+        with progress_bar(budget, desc, unit, enabled=progress) as bar:
+            while done < budget:
                 start = time.perf_counter()
                 result = self.algo.train()
                 wall += time.perf_counter() - start
@@ -262,28 +288,46 @@ class Oracle:
                 # RLlib reported NaN here once in a 3M-step run (no runner failed): count
                 # such an iteration as no steps rather than crash.
                 steps = int(steps) if np.isfinite(steps) else 0
-                done += steps
+                env_steps += steps
+                samples = self._learner_counts()[1] - samples_before
+                before, done = done, (samples if self.counts_samples else env_steps)
                 iterations += 1
                 ret = runners.get("episode_return_mean", float("nan"))
-                log.append({"env_steps": done, "return": float(ret), **self._health(result)})
-                bar.update(min(steps, env_steps - bar.n))
-                bar.set_postfix(
-                    ret=f"{ret:.1f}", std=f"{log[-1]['std_median']:.2f}", sps=f"{done / wall:.0f}"
+                log.append(
+                    {
+                        "env_steps": env_steps,
+                        "learner_samples": samples,
+                        "return": float(ret),
+                        **self._health(result),
+                    }
                 )
-        learn = self._update_seconds() - learn_before
+                bar.update(min(done - before, budget - bar.n))
+                bar.set_postfix(
+                    ret=f"{ret:.1f}",
+                    std=f"{log[-1]['std_median']:.2f}",
+                    sps=f"{env_steps / wall:.0f}",
+                )
+        learn, samples, grads = (
+            now - then
+            for now, then in zip(
+                self._learner_counts(), (learn_before, samples_before, grads_before), strict=True
+            )
+        )
         sample = max(wall - learn, 0.0)
         runners = result.get("env_runners", {})
         module_return = {
             k: float(v) for k, v in runners.get("module_episode_returns_mean", {}).items()
         }
         return TrainStats(
-            env_steps=done,
+            env_steps=env_steps,
             iterations=iterations,
             wall_s=wall,
             sample_s=sample,
             learn_s=learn,
             episode_return=float(runners.get("episode_return_mean", np.nan)),
             module_return=module_return,
+            learner_samples=int(samples),
+            gradient_steps=int(grads),
             iteration_log=tuple(log),
         )
 
@@ -306,9 +350,18 @@ class Oracle:
             row[key] = float(np.mean(values)) if values else float("nan")
         return row
 
-    def _update_seconds(self) -> float:
-        results = self.algo.learner_group.foreach_learner(lambda lr: lr.update_s)
-        return float(sum(r.get() for r in results if r.ok))
+    def _learner_counts(self) -> tuple[float, int, int]:
+        """The learner(s)' running totals: update seconds, trained-module transitions
+        consumed, gradient steps."""
+        results = self.algo.learner_group.foreach_learner(
+            lambda lr: (lr.update_s, lr.samples, lr.gradient_steps)
+        )
+        rows = [r.get() for r in results if r.ok]
+        return (
+            float(sum(r[0] for r in rows)),
+            int(sum(r[1] for r in rows)),
+            int(sum(r[2] for r in rows)),
+        )
 
     # ---- weights ------------------------------------------------------------------------
     def weights(self, module_ids: Sequence[str]) -> dict[str, dict[str, np.ndarray]]:

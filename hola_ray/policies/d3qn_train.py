@@ -20,10 +20,12 @@ import gymnasium as gym
 import numpy as np
 import torch
 import yaml
+from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 from ray.tune.registry import register_env
 
 from hola_ray.env.config import PursuitConfig, load_yaml
+from hola_ray.env.horizon import horizon_is_truncation
 from hola_ray.env.layout import ObsLayout
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.policies.d3qn import D3QNG, FORMAT, PairActor, dacoop_state, state_dim
@@ -175,6 +177,14 @@ class D3QNEnv(MultiAgentEnv):
 register_env(ENV_NAME, lambda cfg: D3QNEnv(cfg))
 
 
+class HorizonTruncates(RLlibCallback):
+    """An episode cut at the horizon is truncated, not terminated, so the DQN's n-step
+    targets bootstrap Q(s_T, ·) there (`hola_ray.env.horizon`)."""
+
+    def on_episode_end(self, *, episode, **kwargs) -> None:
+        horizon_is_truncation(episode)
+
+
 def algorithm_config(run: D3QNRun):
     from ray.rllib.algorithms.dqn import DQNConfig
 
@@ -214,6 +224,7 @@ def algorithm_config(run: D3QNRun):
                 "beta": s.beta,
             },
         )
+        .callbacks(HorizonTruncates)
         .debugging(seed=run.seed, log_level="ERROR")
     )
 

@@ -47,7 +47,11 @@ GEN_PREFIX = "gen_"
 
 
 def best_score(row: Mapping[str, Any]) -> tuple[float, float]:
-    """What `best.pt` is judged on: learner success, then lower learner collision."""
+    """What `best.pt` is judged on, the one rule for every method: success with the
+    validation teammates, then lower collision there; a run without validation teammates
+    falls back on its own judging (learner success, then lower learner collision)."""
+    if row.get("val_success") not in (None, ""):
+        return float(row["val_success"]), -float(row["val_collision"])
     return float(row["learner_success"]), -float(row["learner_collision"])
 
 
@@ -144,15 +148,23 @@ class RunDir:
             kept = json.loads(self.best_info.read_text())
             if best_score(row) <= best_score(kept):
                 return False
+        validated = row.get("val_success") not in (None, "")
         info = {
             "generation": g,
             "learner_success": float(row["learner_success"]),
             "learner_collision": float(row["learner_collision"]),
             "learner_length": float(row["learner_length"]),
             "env_steps": int(row.get("env_steps", 0)),
-            "judged_by": "highest learner_success, then lowest learner_collision, over the "
-            "generations' own judging (self-play rollout, or the Grapher's hyperedges)",
+            "judged_by": (
+                "highest val_success, then lowest val_collision: the learner with the "
+                "validation teammates"
+                if validated
+                else "highest learner_success, then lowest learner_collision, over the "
+                "generations' own judging (self-play rollout, or the Grapher's hyperedges)"
+            ),
         }
+        if validated:
+            info |= {k: float(row[k]) for k in ("val_success", "val_collision")}
         _atomic_torch_save(dict(export), self.best)
         _atomic_write_text(self.best_info, json.dumps(info, indent=1))
         return True
@@ -213,6 +225,30 @@ class RunDir:
         os.rename(tmp, final)
         _fsync_dir(self.generations)
         return final
+
+    def adopt_generation_zero(self, donor: RunDir, population: Mapping[str, Any]) -> None:
+        """Make `donor`'s generation 0 (its pre-trained members and G_0) this run's own:
+        the members' files, then the generation folder (renamed into place, so it arrives
+        whole), its state's population settings replaced by `population` (this run's
+        method: φ kind, acceptance, sizes)."""
+        state = donor.read_json(0, "state.json")
+        nodes = [int(v) for v in state["population"]["slots"]]
+        self.members.mkdir(parents=True, exist_ok=True)
+        for v in nodes:
+            for source in (donor.member_export(v), donor.member_state(v)):
+                shutil.copyfile(source, self.members / source.name)
+        tmp = self.generations / f".tmp_{GEN_PREFIX}0000_{os.getpid()}"
+        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.copytree(donor.generation(0), tmp)
+        state["population"] |= dict(population)
+        (tmp / "state.json").write_text(json.dumps(state, indent=1))
+        metrics = json.loads((tmp / "metrics.json").read_text())
+        metrics["adopted_from"] = donor.root.name
+        (tmp / "metrics.json").write_text(json.dumps(metrics, indent=1))
+        _fsync_dir(tmp)
+        os.rename(tmp, self.generation(0))
+        _fsync_dir(self.generations)
+        self.rewrite_metrics_csv()
 
     def read_json(self, g: int, name: str) -> Any:
         return json.loads((self.generation(g) / name).read_text())

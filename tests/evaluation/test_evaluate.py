@@ -11,7 +11,8 @@ import pytest
 import torch
 
 from hola_ray.env.config import PursuitConfig
-from hola_ray.evaluate import br_prox, cell_returns, draw_teams, iqm, main, play
+from hola_ray.evaluate import br_prox, cell_returns, iqm, main
+from hola_ray.evaluation.teams import draw_teams, play
 from hola_ray.policies.learned import random_export
 from hola_ray.policies.registry import make_policy
 
@@ -171,7 +172,7 @@ def test_learner_crash_is_the_learners_own_seat(config, straight):
 
 
 def test_partner_combinations_ignore_the_learners_seat_and_the_order():
-    from hola_ray.evaluate import partner_combinations
+    from hola_ray.evaluation.teams import partner_combinations
 
     teams = np.array([[0, 1, 2], [2, 0, 1], [1, 2, 0], [0, 2, 2], [3, 0, 1]])
     ids = partner_combinations(teams, members=3)

@@ -131,3 +131,35 @@ def test_pbt_trains_its_agents_in_turn_and_exploits_the_best(tmp_path, capsys):
     original = torch.load(r.member_export(source), weights_only=False)
     for w1, w2 in zip(copied["weights"], original["weights"], strict=True):
         assert torch.equal(w1, w2)
+
+
+def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(tmp_path, capsys):
+    """hola and uniform of one seed build the same G_0 (MEP's population): uniform taking
+    hola's generation 0 holds the same members and hyperedges as uniform building its own,
+    with its own φ kind; a run whose pre-training differs takes nothing."""
+
+    smoke = yaml.safe_load(SMOKE.read_text()) | {"generations": 0}
+    donor, own, adopted = tmp_path / "hola", tmp_path / "uniform-own", tmp_path / "uniform"
+    train(smoke | {"method": "hola"}, donor, capsys)
+    train(smoke | {"method": "uniform"}, own, capsys)
+    capsys.readouterr()
+    Trainer(
+        RunConfig.from_dict(smoke | {"method": "uniform"}),
+        adopted,
+        progress=False,
+        adopt_from=(donor,),
+    ).fit()
+    assert "gen 0: adopted from hola" in capsys.readouterr().out
+    a, b = RunDir(adopted), RunDir(own)
+    state = a.read_json(0, "state.json")["population"]
+    assert state["phi_kind"] == "uniform"
+    assert state["hyfog"] == b.read_json(0, "state.json")["population"]["hyfog"]
+    for v in map(int, state["slots"]):
+        assert a.member_export(v).read_bytes() == b.member_export(v).read_bytes()
+    assert len(a.metrics_csv.read_text().splitlines()) == 2  # header and generation 0
+    other = smoke | {"method": "uniform", "pretrain": {"env_steps": 3000}}
+    capsys.readouterr()
+    Trainer(
+        RunConfig.from_dict(other), tmp_path / "other", progress=False, adopt_from=(donor,)
+    ).fit()
+    assert "adopted" not in capsys.readouterr().out

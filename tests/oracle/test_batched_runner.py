@@ -13,6 +13,7 @@ from collections import defaultdict
 import numpy as np
 import pytest
 import ray
+import torch
 from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
 
 from hola_ray.env.pettingzoo_env import PursuitEnv
@@ -137,7 +138,13 @@ def replay(seed: int, actions: dict[str, np.ndarray], dist_inputs, logp, modules
         )
         step += 1
         end_infos = infos
-    return episode.to_numpy(), end_infos
+    episode = episode.to_numpy()
+    if episode.is_truncated:  # the one deliberate difference: the horizon truncates
+        episode.is_terminated = False
+        for sa in episode.agent_episodes.values():
+            if sa.is_truncated:
+                sa.is_terminated = False
+    return episode, end_infos
 
 
 def test_episodes_replay_in_pursuit_env_and_match_rllibs_bookkeeping(oracle):
@@ -269,3 +276,54 @@ def test_the_partner_stack_plays_each_partners_own_actor():
         np.testing.assert_allclose(got[rows].numpy(), a.logits(obs[rows]).numpy(), atol=1e-6)
     # index of a runner's module ids → slot (−1: not a partner)
     assert stack.slots(["learner", "m3", "m0"]).tolist() == [-1, 3, 0]
+
+
+def test_an_episode_cut_at_the_horizon_bootstraps_its_last_value(oracle):
+    """A hand-made episode of the learner, three steps of reward 1: cut at the horizon
+    (truncated) its last value target is r + γ·V(s_3), the value of the observation it was
+    cut at; ended (terminated) it is r alone. The same learner connector PPO trains with."""
+    from ray.rllib.core.columns import Columns
+    from ray.rllib.env.single_agent_episode import SingleAgentEpisode
+    from ray.rllib.env.utils.infinite_lookback_buffer import InfiniteLookbackBuffer
+    from ray.rllib.evaluation.postprocessing import Postprocessing
+
+    learner = oracle.algo.learner_group._learner
+    module = learner.module[LEARNER]
+    rng = np.random.default_rng(5)
+    obs = rng.uniform(-1, 1, (4, CONFIG.env.obs_dim)).astype(np.float32)
+    gamma = CONFIG.oracle.gamma
+
+    def last_target(truncated: bool) -> float:
+        sa = SingleAgentEpisode(
+            agent_id="pursuer_0",
+            module_id=LEARNER,
+            observations=list(obs),
+            actions=[np.zeros(1, np.float32)] * 3,
+            rewards=[1.0, 1.0, 1.0],
+            extra_model_outputs={
+                Columns.ACTION_DIST_INPUTS: [np.zeros(2, np.float32)] * 3,
+                Columns.ACTION_LOGP: [np.float32(0.0)] * 3,
+            },
+            terminated=not truncated,
+            truncated=truncated,
+            len_lookback_buffer=0,
+        )
+        episode = MultiAgentEpisode(agent_module_ids={"pursuer_0": LEARNER})
+        episode.agent_episodes["pursuer_0"] = sa
+        episode.env_t_to_agent_t["pursuer_0"] = InfiniteLookbackBuffer(
+            data=[0, 1, 2, 3], lookback=0
+        )
+        episode.env_t = 3
+        episode.is_terminated, episode.is_truncated = not truncated, truncated
+        batch = learner._learner_connector(
+            rl_module=learner.module, batch={}, episodes=[episode], metrics=learner.metrics
+        )
+        targets = np.asarray(batch[LEARNER][Postprocessing.VALUE_TARGETS])
+        mask = np.asarray(batch[LEARNER].get(Columns.LOSS_MASK, np.ones(len(targets), bool)))
+        return float(targets[mask.astype(bool)][-1])
+
+    with torch.no_grad():
+        v_last = float(module.compute_values({Columns.OBS: torch.from_numpy(obs[3:])})[0])
+    assert last_target(truncated=False) == pytest.approx(1.0, abs=1e-5)
+    assert last_target(truncated=True) == pytest.approx(1.0 + gamma * v_last, abs=1e-5)
+    assert abs(v_last) > 1e-3  # the bootstrap is visible

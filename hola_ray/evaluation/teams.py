@@ -1,0 +1,57 @@
+"""A learner among drawn teammates: the zero-shot evaluation's episodes (paper §V) and the
+validation teammates' (held-out protocol), one code path for both.
+
+Per seed, every episode seats the learner in a uniformly random seat and fills the other
+n_p − 1 seats with uniform draws (with replacement) from the teammates. The draws depend on
+the seed only, so every learner evaluated with the same seeds plays the same episodes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.evaluation.compare import FIELDS
+from hola_ray.evaluation.rollout import rollout
+
+
+def draw_teams(rng: np.random.Generator, episodes: int, n_p: int, members: int) -> np.ndarray:
+    """[episodes, n_p] indices into [learner, member 1 … member M]: the learner (0) in a
+    uniformly random seat, every other seat a uniform draw from the members (1 … M)."""
+    teams = rng.integers(1, members + 1, size=(episodes, n_p))
+    teams[np.arange(episodes), rng.integers(0, n_p, size=episodes)] = 0
+    return teams
+
+
+def partner_combinations(teams: np.ndarray, members: int) -> np.ndarray:
+    """[E] an id per episode of the members beside the learner, as a multiset (seat order
+    and the learner's seat left out): the bootstrap's strata."""
+    mates = np.sort(teams[teams != 0].reshape(teams.shape[0], teams.shape[1] - 1), axis=1)
+    base = members + 1
+    return (mates * base ** np.arange(mates.shape[1])[::-1]).sum(axis=1)
+
+
+def play(
+    learner, members: list, config: PursuitConfig, episodes: int, seeds: Sequence[int]
+) -> dict[str, np.ndarray]:
+    """Every episode's record ([episodes · seeds] per field of `FIELDS`, and `eval_seed`):
+    per seed, `episodes` episodes with drawn teams."""
+    out: dict[str, list[np.ndarray]] = {m: [] for m in (*FIELDS, "eval_seed")}
+    n_p = config.n_pursuers
+    for s in seeds:
+        rng = np.random.default_rng(np.random.SeedSequence([int(s), 7]))
+        teams = draw_teams(rng, episodes, n_p, len(members))
+        result = rollout(config, [learner, *members], episodes, assignment=teams, seed=int(s))
+        learner_seat = teams == 0  # the learner is candidate 0, in one seat per episode
+        out["success"].append(result.success.astype(np.float64))
+        out["collision"].append(result.collision.astype(np.float64))
+        out["length"].append(result.length.astype(np.float64))
+        out["reward"].append(result.team_return / n_p)
+        out["learner_crash"].append(result.crashed[learner_seat].astype(np.float64))
+        mates = result.crashed[~learner_seat].reshape(episodes, n_p - 1)
+        out["teammate_crash"].append(mates.mean(axis=1))
+        out["stratum"].append(partner_combinations(teams, len(members)))
+        out["eval_seed"].append(np.full(episodes, int(s)))
+    return {m: np.concatenate(v) for m, v in out.items()}
