@@ -4,7 +4,7 @@
 
 With no `RAY_ADDRESS` it starts a local Ray (the laptop case); with one it joins that
 cluster (`ray job submit` sets it). With no --config it runs the embedded default, the
-same as configs/default.yaml: a small run that finishes in about 4 minutes on 2 CPUs.
+same as configs/default.yaml: a small run that finishes in about 5 minutes on 2 CPUs.
 The config is validated before Ray starts.
 """
 
@@ -30,6 +30,7 @@ DEFAULT: dict[str, Any] = {
         "reward": {"obstacle_penalty": 0.5, "teammate_penalty": 0.5},
     },
     "oracle": {
+        "budget": "learner_samples",
         "env_steps": 100_000,
         "train_batch": 8192,
         "minibatch": 1024,

@@ -122,7 +122,7 @@ def test_each_trial_is_the_base_with_the_experiment_and_method_overrides(tmp_pat
 @pytest.mark.parametrize(
     ("patch", "message"),
     [
-        ({"methods": {"hola_x": {}}}, r"unknown method\(s\) \['hola_x'\]"),
+        ({"methods": {"hola_x": {}}}, "hola_x: unknown method 'hola_x'"),
         ({"seeds": []}, "seeds must be a non-empty list"),
         ({"color": 1}, r"unknown key\(s\) \['color'\]"),
         ({"methods": {"sp": {"oracle": {"env_steps": -1}}}}, "trial sp-s0: oracle.env_steps"),
