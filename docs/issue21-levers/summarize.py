@@ -10,19 +10,20 @@ from __future__ import annotations
 
 import csv
 import json
-import math
 import sys
 from pathlib import Path
+
+import numpy as np
+
+from hola_ray.evaluation.stats import mean_and_se
 
 ROOT = Path(__file__).resolve().parent
 
 
 def mean_se(xs: list[float]) -> str:
-    m = sum(xs) / len(xs)
-    if len(xs) < 2:
-        return f"{100 * m:.1f}"
-    se = math.sqrt(sum((x - m) ** 2 for x in xs) / (len(xs) - 1) / len(xs))
-    return f"{100 * m:.1f} ± {100 * se:.1f}"
+    """Mean ± s.e. over seeds, in percent; the mean alone for one seed."""
+    m, se = mean_and_se(np.array(xs))
+    return f"{100 * m:.1f}" if len(xs) < 2 else f"{100 * m:.1f} ± {100 * se:.1f}"
 
 
 def row(variant: str, times: dict[str, int]) -> str:
