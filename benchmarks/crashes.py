@@ -1,0 +1,132 @@
+"""What the pursuers hit, and when: every crash of a team classified by what was within
+reach at the step it happened.
+
+    python benchmarks/crashes.py POLICY [POLICY ...] [--teammates copies|validation|NAME NAME]
+        [--episodes 200] [--seed 5]
+
+POLICY: a run directory (its learner.pt), a generation folder or an export file, played in
+its own trained scenario. The learner sits in seat 0; its teammates are its own copies
+(`copies`, the default: how its own population would fly), the first n_p − 1 validation
+teammates (`validation`, what training may see) or the hand-written policies named. A
+crash is a `wall` (within the safe radius of the arena's edge), a `bar` (of an obstacle
+bar), a `mate` (another active pursuer within the pursuer–pursuer distance) or a `wreck`
+(anything else: a disabled pursuer's last position). Prints one line per policy and as its
+last line one JSON object. It measures; it never chooses a setting.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.env.core import BatchedPursuit
+from hola_ray.evaluation.stats import episode_seeds
+from hola_ray.policies.base import seated
+from hola_ray.policies.registry import load_policy, make_policy, trained_scenario
+
+CAUSES = ("wall", "bar", "mate", "wreck")
+
+
+def bar_distance(config: PursuitConfig, p: np.ndarray) -> float:
+    """Distance from point p to the nearest obstacle bar (0 inside one)."""
+    best = np.inf
+    for cx, cy, w, h in config.obstacles:
+        dx = max(abs(p[0] - cx) - w / 2, 0.0)
+        dy = max(abs(p[1] - cy) - h / 2, 0.0)
+        best = min(best, float(np.hypot(dx, dy)))
+    return best
+
+
+def crashes(config: PursuitConfig, team: list, episodes: int, seed: int) -> dict:
+    """Play `episodes` episodes with `team` (one policy per seat) and classify every crash."""
+    n_p = config.n_pursuers
+    team = seated(team)
+    env = BatchedPursuit(config, episodes)
+    obs = env.reset(seeds=episode_seeds(seed, episodes))
+    for policy in team:
+        policy.reset(np.ones(episodes, dtype=bool))
+    causes = np.zeros((n_p, len(CAUSES)), dtype=int)
+    steps: list[int] = []
+    evaders_left: list[int] = []
+    while not env.done.all():
+        actions = np.stack([team[i].act(obs[:, i]) for i in range(n_p)], axis=1)
+        before = env.pursuer_active & ~env.done[:, None]
+        obs = env.step(actions.reshape(episodes, n_p)).obs
+        for b, i in zip(*np.nonzero(before & ~env.pursuer_active), strict=True):
+            p = env.pursuer_pos[b, i]
+            wall = min(p[0], config.arena_width - p[0], p[1], config.arena_height - p[1])
+            mate = any(
+                before[b, j]
+                and np.hypot(*(env.pursuer_pos[b, j] - p)) < config.pursuer_collision_distance
+                for j in range(n_p)
+                if j != i
+            )
+            if wall < config.safe_radius:
+                kind = "wall"
+            elif bar_distance(config, p) < config.safe_radius:
+                kind = "bar"
+            else:
+                kind = "mate" if mate else "wreck"
+            causes[i, CAUSES.index(kind)] += 1
+            steps.append(int(env.t[b]))
+            evaders_left.append(int(env.evader_alive[b].sum()))
+    return {
+        "episodes": episodes,
+        "success": float(env.success.mean()),
+        "collision": float(env.collided.mean()),
+        "length": float(env.t.mean()),
+        "crashes": dict(zip(CAUSES, causes.sum(axis=0).tolist(), strict=True)),
+        "learner_crashes": dict(zip(CAUSES, causes[0].tolist(), strict=True)),
+        "seat_crash_rate": (causes.sum(axis=1) / episodes).round(4).tolist(),
+        "crash_step_quartiles": np.percentile(steps, [25, 50, 75]).tolist() if steps else [],
+        "evaders_left_at_crash": np.bincount(evaders_left, minlength=config.n_evaders + 1)
+        .astype(int)
+        .tolist(),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python benchmarks/crashes.py", description=__doc__)
+    parser.add_argument("policies", nargs="+", type=Path)
+    parser.add_argument("--teammates", nargs="+", default=["copies"])
+    parser.add_argument("--episodes", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=5)
+    args = parser.parse_args(argv)
+    out = {}
+    for path in args.policies:
+        scenario = trained_scenario(path)
+        config = PursuitConfig.from_dict(scenario) if scenario else PursuitConfig()
+        learner = load_policy(path, config)
+        if args.teammates == ["copies"]:
+            mates = [learner] * (config.n_pursuers - 1)
+        elif args.teammates == ["validation"]:
+            from hola_ray.pools import load_validation
+
+            members = load_validation("validation", config)
+            mates = [members[k] for k in sorted(members)][: config.n_pursuers - 1]
+        elif len(args.teammates) == config.n_pursuers - 1:
+            mates = [make_policy(n, config) for n in args.teammates]
+        else:
+            print(
+                f"error: --teammates copies, validation or {config.n_pursuers - 1} names",
+                file=sys.stderr,
+            )
+            return 2
+        r = crashes(config, [learner, *mates], args.episodes, args.seed)
+        out[str(path)] = r
+        print(
+            f"{path}: success {r['success']:.1%}, collision {r['collision']:.1%}, crashes "
+            f"{r['crashes']} (the learner's {r['learner_crashes']}), per seat "
+            f"{r['seat_crash_rate']}, at step {r['crash_step_quartiles']} (quartiles)"
+        )
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
