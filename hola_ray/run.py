@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from hola_ray import interrupt
 from hola_ray.env.config import ConfigError
 from hola_ray.methods.config import RunConfig
 
@@ -163,6 +164,7 @@ def main(argv: list[str] | None = None) -> int:
         print(note, flush=True)
     try:
         init_ray(args)
+        interrupt.install()  # after ray.init: a Ctrl-C swallowed inside Ray is not lost
         from hola_ray.methods.hola import Trainer
 
         print(

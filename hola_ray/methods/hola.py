@@ -26,6 +26,7 @@ import numpy as np
 import ray
 from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
+from hola_ray import interrupt
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import mean_and_se
 from hola_ray.evaluation.teams import play
@@ -511,6 +512,7 @@ class Trainer:
         }
 
     def _saved(self, g: int) -> None:
+        interrupt.check()
         if self.saved is not None:
             self.saved(g)
 

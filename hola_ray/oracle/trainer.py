@@ -25,6 +25,7 @@ from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
 from ray.tune.registry import register_env
 
+from hola_ray import interrupt
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.horizon import horizon_is_truncation
 from hola_ray.env.pettingzoo_env import PursuitEnv
@@ -280,6 +281,7 @@ class Oracle:
         unit = "sample" if self.counts_samples else "step"
         with progress_bar(budget, desc, unit, enabled=progress) as bar:
             while done < budget:
+                interrupt.check()
                 start = time.perf_counter()
                 result = self.algo.train()
                 wall += time.perf_counter() - start

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import ray
 from ray.exceptions import RayActorError
 
+from hola_ray import interrupt
 from hola_ray.population.state import EdgeResult
 from hola_ray.progress import progress as progress_bar
 
@@ -80,6 +81,7 @@ def evaluate_edges(
 
     with progress_bar(len(edges) * episodes, desc, "ep", enabled=progress) as bar:
         while queue or pending:
+            interrupt.check()
             while queue and len(pending) < workers:
                 submit(queue.pop(0))
             ready, _ = ray.wait(list(pending), num_returns=1)
