@@ -193,6 +193,30 @@ def test_phi_kinds_differ_when_edge_counts_differ():
         phi(g, "shapley")
 
 
+@settings(max_examples=40, deadline=None)
+@given(
+    st.integers(3, 6).flatmap(
+        lambda n: st.tuples(
+            st.just(n),
+            st.integers(2, n - 1),
+            st.lists(st.floats(-50, 50), min_size=20, max_size=20),
+        )
+    )
+)
+def test_phi_kinds_coincide_on_a_regular_hypergraph(case):
+    """MV_i = Σ_{T∋i} w(T)/l = (d_i/l)·(mean reward of i): with every node in the same
+    number d of hyperedges the two values differ by the factor d/l, which φ ignores. G_0
+    (every l-set of the initial members) is such a hypergraph, so hola and hola_r draw the
+    same partners until a member with a different degree joins (docs/hola-r.md)."""
+    n, l, weights = case  # noqa: E741
+    g = HyFoG(l=l)
+    for v in range(n):
+        g.add_node(v)
+    for k, nodes in enumerate(itertools.combinations(range(n), l)):
+        g.set_weight(nodes, weights[k % len(weights)] + 0.01 * k)
+    assert phi(g, "myerson") == pytest.approx(phi(g, "mean_reward"), rel=1e-9, abs=1e-12)
+
+
 def test_draw_from_a_run_directory(tmp_path, capsys):
     from hola_ray.hypergraph import draw
 

@@ -67,6 +67,36 @@ def test_phi_and_eta_leave_the_undecided_candidate_out():
     assert p.eta() == pytest.approx({0: 2 / 3, 1: 1.0, 2: 1.0, 3: 0.0})
 
 
+def test_hola_and_hola_r_part_only_when_a_sampled_candidate_joins():
+    """On G_0 (complete, 4 members, l = 3: every member in 3 hyperedges) φ from the Myerson
+    value and from the mean reward are one distribution; a candidate judged on 2 sampled
+    hyperedges and accepted is a member in 2, its partners in 4 or 5: they part."""
+    rng = np.random.default_rng(0)
+    pops = {
+        kind: Population(l=3, max_size=6, top_m=5, phi_kind=kind, phi_shift=0.1)
+        for kind in ("myerson", "mean_reward")
+    }
+    g0 = [
+        edge(e, float(w))
+        for e, w in zip(
+            [(0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)], rng.normal(20, 3, 4), strict=True
+        )
+    ]
+    for p in pops.values():
+        p.add_initial(4)
+        p.record(g0)
+    assert pops["myerson"].phi() == pytest.approx(pops["mean_reward"].phi(), rel=1e-12)
+    for p in pops.values():
+        p.propose()
+        sets = p.candidate_edges(2, np.random.default_rng(1))
+        assert len(sets) == 2
+        p.record([edge(e, 18.0 + k) for k, e in enumerate(sets)])
+        assert p.decide().accepted
+    mv, mr = pops["myerson"].phi(), pops["mean_reward"].phi()
+    assert set(mv) == set(mr) == {0, 1, 2, 3, 4}
+    assert max(abs(mv[v] - mr[v]) for v in mv) > 0.01
+
+
 def test_candidate_edges_sample_distinct_sets_reproducibly():
     p = Population(l=3, max_size=10, top_m=3, phi_kind="myerson", phi_shift=0.1)
     p.add_initial(5)
