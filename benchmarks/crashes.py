@@ -53,6 +53,7 @@ def crashes(config: PursuitConfig, team: list, episodes: int, seed: int) -> dict
     causes = np.zeros((n_p, len(CAUSES)), dtype=int)
     steps: list[int] = []
     evaders_left: list[int] = []
+    mates_left: list[int] = []  # at each of the learner's crashes: teammates still flying
     while not env.done.all():
         actions = np.stack([team[i].act(obs[:, i]) for i in range(n_p)], axis=1)
         before = env.pursuer_active & ~env.done[:, None]
@@ -75,6 +76,8 @@ def crashes(config: PursuitConfig, team: list, episodes: int, seed: int) -> dict
             causes[i, CAUSES.index(kind)] += 1
             steps.append(int(env.t[b]))
             evaders_left.append(int(env.evader_alive[b].sum()))
+            if i == 0:
+                mates_left.append(int(before[b].sum()) - 1)
     return {
         "episodes": episodes,
         "success": float(env.success.mean()),
@@ -87,6 +90,7 @@ def crashes(config: PursuitConfig, team: list, episodes: int, seed: int) -> dict
         "evaders_left_at_crash": np.bincount(evaders_left, minlength=config.n_evaders + 1)
         .astype(int)
         .tolist(),
+        "learner_mates_left_at_crash": np.bincount(mates_left, minlength=n_p).astype(int).tolist(),
     }
 
 
@@ -122,7 +126,8 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"{path}: success {r['success']:.1%}, collision {r['collision']:.1%}, crashes "
             f"{r['crashes']} (the learner's {r['learner_crashes']}), per seat "
-            f"{r['seat_crash_rate']}, at step {r['crash_step_quartiles']} (quartiles)"
+            f"{r['seat_crash_rate']}, at step {r['crash_step_quartiles']} (quartiles); "
+            f"teammates flying when the learner crashed {r['learner_mates_left_at_crash']}"
         )
     print(json.dumps(out))
     return 0

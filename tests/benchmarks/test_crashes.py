@@ -59,3 +59,6 @@ def test_greedy_copies_crash_mostly_into_each_other():
     counts = result["crashes"]
     assert counts["mate"] > counts["wall"] + counts["bar"] + counts["wreck"]
     assert sum(result["evaders_left_at_crash"]) == sum(counts.values())
+    left = result["learner_mates_left_at_crash"]  # seat 0's crashes by teammates flying
+    assert len(left) == 3 and sum(left) == sum(result["learner_crashes"].values())
+    assert left[2] > 0  # copies that fly into each other: both teammates often still up
