@@ -26,7 +26,7 @@ DISCOUNTS = (0.99, 0.997, 1.0)
 
 
 def play(path: Path, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The learner's reward per step [T, E], whether it was flying [T, E], whether it crashed [E]."""
+    """The learner's reward per step [T, E], whether it flew [T, E], whether it crashed [E]."""
     config = PursuitConfig.from_dict(trained_scenario(path))
     members = load_validation("validation", config)
     mates = [members[k] for k in sorted(members)][: config.n_pursuers - 1]
