@@ -53,7 +53,8 @@ F_OBSTACLE_PENALTY = 29
 F_OBSTACLE_REACH = 30
 F_MATE_PENALTY = 31
 F_MATE_REACH = 32
-N_FLOAT_PARAMS = 33
+F_APPROACH_OWN = 33
+N_FLOAT_PARAMS = 34
 
 # ---- packed integer parameters ------------------------------------------------------
 I_HORIZON = 0
@@ -131,6 +132,7 @@ def pack_params(config: PursuitConfig) -> Params:
     fp[F_OBSTACLE_REACH] = reward.obstacle_distance
     fp[F_MATE_PENALTY] = reward.teammate_penalty
     fp[F_MATE_REACH] = reward.teammate_distance
+    fp[F_APPROACH_OWN] = float(reward.approach == "own_move")
     fp[F_E_SENS] = ev.sensitivity_range
     fp[F_E_PANIC] = ev.panic_threshold
     fp[F_E_WANDER_CLEAR] = ev.wander_clearance
@@ -471,6 +473,20 @@ def evader_heading(b, e, p, s):
 
 # ---- step -----------------------------------------------------------------------------------
 @njit(cache=True)
+def approach_term(b, i, p, s, dist_prev):
+    """Pursuer i's Σ (d_prev − d_now) / approach_scale over the live evaders, d_now from
+    the positions as they stand."""
+    fp = p[0]
+    ppos, epos, ealive = s[0], s[3], s[5]
+    r = 0.0
+    for e in range(epos.shape[1]):
+        if ealive[b, e]:
+            d = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
+            r += (dist_prev[b, i, e] - d) / fp[F_APPROACH_SCALE]
+    return r
+
+
+@njit(cache=True)
 def step_episode(b, actions, p, s, out):
     """Advance episode b by one step with pursuer actions [n_p] in [0, 1] (already clipped)."""
     fp, ip, rects, spawn = p
@@ -508,6 +524,12 @@ def step_episode(b, actions, p, s, out):
             ppos[b, i, 0] += step_p * math.cos(h)
             ppos[b, i, 1] += step_p * math.sin(h)
 
+    # the approach term credited to the pursuer's own move: to where the evaders were
+    if fp[F_APPROACH_OWN] > 0.0:
+        for i in range(n_p):
+            if pactive[b, i]:
+                reward[b, i] = approach_term(b, i, p, s, dist_prev)
+
     step_e = fp[F_V_E] * fp[F_DT]
     for e in range(n_e):
         if ealive[b, e]:
@@ -520,16 +542,11 @@ def step_episode(b, actions, p, s, out):
                 epos[b, e, 0] = nx
                 epos[b, e, 1] = ny
 
-    # approach term over the evaders live at the start of the step
-    for i in range(n_p):
-        if not pactive[b, i]:
-            continue
-        r = 0.0
-        for e in range(n_e):
-            if ealive[b, e]:
-                d = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
-                r += (dist_prev[b, i, e] - d) / fp[F_APPROACH_SCALE]
-        reward[b, i] = r
+    # approach term over the evaders live at the start of the step (after both moves)
+    if fp[F_APPROACH_OWN] == 0.0:
+        for i in range(n_p):
+            if pactive[b, i]:
+                reward[b, i] = approach_term(b, i, p, s, dist_prev)
 
     # captures, by any pursuer active this step; the bonus is shared by every active pursuer
     caught = 0

@@ -177,6 +177,10 @@ class EvaderConfig:
         )
 
 
+APPROACH_MODES = ("distance", "own_move")
+"""What the approach term's d_now measures (`RewardConfig.approach`)."""
+
+
 @dataclass(frozen=True)
 class RewardConfig:
     """Each pursuer's reward per step (SPEC §1). The defaults are SPEC's; DACOOP-A's code
@@ -188,6 +192,11 @@ class RewardConfig:
     """subtracted from the reward of a pursuer that collides this step"""
     approach_scale: float = 0.3
     """the approach term is Σ (d_prev − d_now) / approach_scale over live evaders"""
+    approach: str = "distance"
+    """what d_now measures: `distance`, the distance after both moves (SPEC §1), so an
+    escaping evader costs the pursuer up to (v_e − v_p)·dt / approach_scale a step; or
+    `own_move`, the distance from the pursuer's new position to where the evader was, so the
+    term credits only the pursuer's own move and an escape costs it nothing"""
     obstacle_penalty: float = 0.0
     """subtracted each step a pursuer ends nearer than obstacle_distance to an obstacle"""
     obstacle_distance: float = 0.15
@@ -206,6 +215,12 @@ class RewardConfig:
                 "a finite number >= 0",
                 value,
             )
+        require(
+            self.approach in APPROACH_MODES,
+            "reward.approach",
+            " or ".join(APPROACH_MODES),
+            self.approach,
+        )
         for name in ("approach_scale", "obstacle_distance", "teammate_distance"):
             value = getattr(self, name)
             require(

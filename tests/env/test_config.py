@@ -25,6 +25,7 @@ from hola_ray.env import ConfigError, EvaderConfig, PursuitConfig
         ({"reward": {"collision": -10}}, "reward.collision", ">= 0"),
         ({"reward": {"obstacle_penalty": float("inf")}}, "reward.obstacle_penalty", ">= 0"),
         ({"reward": {"approach_scale": 0}}, "reward.approach_scale", "> 0"),
+        ({"reward": {"approach": "both"}}, "reward.approach", "distance or own_move"),
         ({"reward": {"teammate_distance": True}}, "reward.teammate_distance", "> 0"),
     ],
 )

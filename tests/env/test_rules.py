@@ -161,8 +161,12 @@ def test_nan_actions_raise_and_out_of_range_are_clipped(config):
     np.testing.assert_array_equal(env.obs[0], env.obs[1])
 
 
-def test_approach_reward_is_the_distance_gained(config):
-    env = BatchedPursuit(config, 4)
+@pytest.mark.parametrize("mode", ["distance", "own_move"])
+def test_approach_reward_is_the_distance_gained(config, mode):
+    """`distance`: d_now after both moves (SPEC §1); `own_move`: from the pursuer's new
+    position to where the evader was, so an evader's escape costs the pursuer nothing."""
+    reward = dataclasses.replace(config.reward, approach=mode)
+    env = BatchedPursuit(dataclasses.replace(config, reward=reward), 4)
     env.reset(seeds=[11, 12, 13, 14])
     rng = np.random.default_rng(0)
     for _ in range(50):
@@ -173,7 +177,8 @@ def test_approach_reward_is_the_distance_gained(config):
         captures = env.captures.copy()
         result = env.step(rng.random((4, 3)))
         d_prev = np.linalg.norm(before_e[:, None] - before_p[:, :, None], axis=-1)
-        d_now = np.linalg.norm(env.evader_pos[:, None] - env.pursuer_pos[:, :, None], axis=-1)
+        evaders = env.evader_pos if mode == "distance" else before_e
+        d_now = np.linalg.norm(evaders[:, None] - env.pursuer_pos[:, :, None], axis=-1)
         approach = ((d_prev - d_now) / 0.3 * alive[:, None]).sum(-1)
         expected = approach + 10.0 * (env.captures - captures)[:, None] - 10.0 * result.disabled
         np.testing.assert_allclose(result.reward, expected * active, atol=1e-9)
