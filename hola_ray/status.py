@@ -109,10 +109,11 @@ def _fmt(value: Any) -> str:
 
 def plot_progress(run_dir: Path) -> Path:
     """RUN_DIR/progress.png. Per generation: success, collision and team return (± s.e.)
-    of G_0 (generation 0, the pre-trained population) and of each generation's learner as
-    it was judged (with the population's members, or in self-play as three copies), the
-    accepted learners and the best generation marked; φ entropy (self-play: episode
-    length). Per PPO iteration
+    of G_0 (generation 0, the pre-trained population), of each generation's learner as
+    it was judged (with the population's members, or in self-play as three copies) and of
+    the learner with the validation teammates (with its own crash rate), the accepted
+    learners and the best generation (on the validation curve, its rule) marked; φ entropy
+    (self-play: episode length). Per PPO iteration
     (iterations.csv): the trained policy's median std and its clipped fraction."""
     import matplotlib
 
@@ -131,7 +132,7 @@ def plot_progress(run_dir: Path) -> Path:
             [float(r[f"{prefix}_{name}_se"]) for r in have],
         )
 
-    fig, axes = plt.subplots(2, 3, figsize=(13, 6.6))
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7.6))
     for ax, name, label in (
         (axes[0, 0], "success", "success rate"),
         (axes[0, 1], "collision", "collision rate"),
@@ -140,12 +141,19 @@ def plot_progress(run_dir: Path) -> Path:
         for prefix, text, style in (
             ("population", "G_0 (pre-trained)", "s"),
             ("learner", "learner as judged", "o"),
+            ("val", "learner with the validation teammates", "^"),
         ):
             gens, mean, se = series(prefix, name)
             if gens:
                 ax.errorbar(gens, mean, yerr=se, marker=style, capsize=3, label=text)
+        if name == "collision":
+            gens, mean, se = series("val", "learner_crash")
+            if gens:
+                ax.errorbar(gens, mean, yerr=se, marker="v", capsize=3, label="its own crash")
         gens, mean, _ = series("learner", name)
         value = dict(zip(gens, mean, strict=True))
+        gens, mean, _ = series("val", name)
+        chosen_on = dict(zip(gens, mean, strict=True)) or value  # best.pt's rule
         accepted = [int(r["generation"]) for r in rows if r.get("accepted") == "1"]
         shown = [g for g in accepted if g in value]
         if shown:
@@ -159,10 +167,10 @@ def plot_progress(run_dir: Path) -> Path:
                 label="accepted",
                 zorder=3,
             )
-        if best is not None and best in value:
+        if best is not None and best in chosen_on:
             ax.scatter(
                 [best],
-                [value[best]],
+                [chosen_on[best]],
                 marker="*",
                 s=160,
                 color="gold",
@@ -171,7 +179,7 @@ def plot_progress(run_dir: Path) -> Path:
                 zorder=4,
             )
         ax.set(xlabel="generation", ylabel=label)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2)
     axes[0, 0].set_ylim(0, 1)
     axes[0, 1].set_ylim(0, 1)
 

@@ -3,7 +3,7 @@ here (each folder: config.yaml, metrics.csv, best.json, seated.json; NAME_s1, NA
 seeds 1 and 2 of NAME):
 
     python docs/issue21-levers/summarize.py env samples samples_pre5 samples_pre5a0 \
-        samples_col30 samples_shift1
+        samples_col30 samples_shift1 own_move
 """
 
 from __future__ import annotations
