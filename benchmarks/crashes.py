@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.teammates == ["copies"]:
             mates = [learner] * (config.n_pursuers - 1)
         elif args.teammates == ["validation"]:
-            from hola_ray.pools import load_validation
+            from hola_ray.evaluation.pools import load_validation
 
             members = load_validation("validation", config)
             mates = [members[k] for k in sorted(members)][: config.n_pursuers - 1]

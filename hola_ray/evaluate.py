@@ -55,12 +55,19 @@ from hola_ray.cli import OneLineParser, fail
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.evaluation.compare import FIELDS, METRICS, compare
+from hola_ray.evaluation.pools import (
+    EVALUATION_POOLS,
+    POOLS,
+    PoolError,
+    load_pool,
+    pool_dir,
+    sha256,
+)
 from hola_ray.evaluation.rollout import PolicyError, rollout
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.evaluation.teams import play
 from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
 from hola_ray.policies.registry import load_export, load_policy, policy_file
-from hola_ray.pools import EVALUATION_POOLS, POOLS, PoolError, load_pool, pool_dir, sha256
 
 
 class EvaluationError(RuntimeError):

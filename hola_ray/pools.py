@@ -1,275 +1,48 @@
 """The unseen teammate pools (SPEC §3, paper Appendix): trained once, committed, verified.
 
-    python -m hola_ray.pools build [--pool hot|het] [--episodes 50] [--seeds 0 1 2]
-    python -m hola_ray.pools show [--pool hot|het]
+    python -m hola_ray.pools build [--pool hot|het|validation] [--episodes 50] [--seeds 0 1 2]
+    python -m hola_ray.pools show [--pool hot|het|validation]
 
-A pool is a folder `pools/<name>/` holding one weights file per learned member and
-`manifest.json`: per member its paper name, kind, file and the file's sha256, the config
-and seed it was trained with, the commit that trained it, the scenario it plays, and its
-paper Table II figures (three copies against one evader). Hand-written members (Greedy,
-VICSEK) are code, so they have no file. Loading a pool checks every hash and refuses a
-changed file, so an evaluation always plays the teammates the manifest describes.
+This is the command that builds and shows the pools; what a pool is, and how it is loaded
+and verified, is `hola_ray.evaluation.pools`.
 
 - `hot` (homogeneous): PPO (1) and PPO (2), self-play PPO (`method: sp`) trained on the
   evaluation's scenario, 3 pursuers vs 2 evaders (configs/pools/ppo-*.yaml). The run
   directories stay under runs/pools/ (a build resumes or reuses them); the member is the
   run's best generation (`best.pt`, judged in self-play on its own scenario).
 - `het` (heterogeneous): Greedy, VICSEK, D3QN-G (1) and (2).
-
-No pool member is ever used in training: nothing under hola_ray/methods or
-hola_ray/oracle reads this module, and the pool seeds (101, 102, …) are kept apart from
-the seeds of training runs.
-
-A learned member trained with more evaders than a scenario has plays it through
-`ScenarioAdapter`: the missing evaders read as captured, (2, 0, 0), exactly what the
-member saw in training once an evader was caught. That is how Table II's one-evader
-episodes are played by members trained for two.
+- `validation`: the teammates training may see, for selection (APF-A pairs and two SP
+  agents). The pool seeds (101, 102, …) are kept apart from the seeds of training runs.
 """
 
 from __future__ import annotations
 
-import copy
 import dataclasses
-import hashlib
 import json
 import subprocess
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from hola_ray.cli import OneLineParser, fail
 from hola_ray.env.config import PursuitConfig
-from hola_ray.policies.base import Policy
-from hola_ray.policies.registry import load_policy, make_policy
-
-ROOT = Path(__file__).resolve().parents[1]
-POOLS_DIR = ROOT / "pools"
-RUNS_DIR = ROOT / "runs" / "pools"
-MANIFEST = "manifest.json"
-FORMAT = "hola_ray.pool/1"
-
-
-@dataclass(frozen=True)
-class Member:
-    """A pool member: its paper name, how it is made, and (if trained) its config."""
-
-    id: str
-    name: str
-    kind: str  # "handwritten" | "ppo" | "d3qn"
-    config: str | None = None  # repository-relative path of the training config
-
-    @property
-    def file(self) -> str | None:
-        return None if self.kind == "handwritten" else f"{self.id}.pt"
-
-
-VALIDATION = "validation"
-"""The validation teammates' pool: built only from what training may see."""
-
-VALIDATION_MEMBERS = (
-    Member("apf-a-3", "APF-A (λ 1.71 m, η 1e-3)", "handwritten"),
-    Member("apf-a-9", "APF-A (λ 0.57 m, η 1e-2)", "handwritten"),
-    Member("apf-a-21", "APF-A (λ 2.86 m, η 1e-1)", "handwritten"),
-    Member("sp-v1", "SP (v1)", "ppo", "configs/pools/sp-v1.yaml"),
-    Member("sp-v2", "SP (v2)", "ppo", "configs/pools/sp-v2.yaml"),
+from hola_ray.evaluation.pools import (
+    FORMAT,
+    MANIFEST,
+    MEMBERS,
+    POOLS,
+    POOLS_DIR,
+    ROOT,
+    RUNS_DIR,
+    Member,
+    PoolError,
+    load_pool,
+    pool_dir,
+    read_manifest,
+    sha256,
+    verify,
 )
-"""Validation teammates: three fixed APF-A pairs (DACOOP-A's potential field, which no
-evaluation pool member plays as such: three copies, 3 vs 2, 60 episodes, reach 98 % success
-with 12 % collision, 70 % and 10 % slowly, 60 % and 60 %) and two self-play agents of seeds
-no evaluation member or training run uses. Disjoint from the evaluation pools by id and by file hash
-(`load_validation` checks both)."""
-
-
-MEMBERS = {
-    m.id: m
-    for m in (
-        Member("ppo-1", "PPO (1)", "ppo", "configs/pools/ppo-1.yaml"),
-        Member("ppo-2", "PPO (2)", "ppo", "configs/pools/ppo-2.yaml"),
-        Member("greedy", "Greedy", "handwritten"),
-        Member("vicsek", "VICSEK", "handwritten"),
-        Member("d3qn-g-1", "D3QN-G (1)", "d3qn", "configs/pools/d3qn-g-1.yaml"),
-        Member("d3qn-g-2", "D3QN-G (2)", "d3qn", "configs/pools/d3qn-g-2.yaml"),
-        *VALIDATION_MEMBERS,
-    )
-}
-"""Every pool member by id."""
-
-EVALUATION_POOLS = {
-    "hot": ("ppo-1", "ppo-2"),
-    "het": ("greedy", "vicsek", "d3qn-g-1", "d3qn-g-2"),
-}
-"""The zero-shot evaluation's pools (paper: homogeneous = PPO; heterogeneous = the rest):
-used for the final figures alone, never in training, selection or tuning."""
-
-POOLS = {**EVALUATION_POOLS, VALIDATION: tuple(m.id for m in VALIDATION_MEMBERS)}
-"""Pool name → member ids: the evaluation pools and the validation set."""
-
-
-class PoolError(RuntimeError):
-    """A pool that cannot be used as it is: unknown, unbuilt, or changed since its build."""
-
-
-# ---- playing a member in another scenario --------------------------------------------------
-class ScenarioAdapter(Policy):
-    """A policy trained with `trained_evaders` evaders, playing a scenario with fewer: the
-    observation gets the missing evaders' triples as captured, (2, 0, 0)."""
-
-    def __init__(self, config: PursuitConfig, policy: Policy, trained_evaders: int) -> None:
-        super().__init__(config)
-        if trained_evaders < config.n_evaders:
-            raise PoolError(
-                f"{policy.name} was trained with {trained_evaders} evader(s); it cannot play "
-                f"{config.n_evaders}"
-            )
-        if policy.config.n_pursuers != config.n_pursuers:
-            raise PoolError(
-                f"{policy.name} was trained with {policy.config.n_pursuers} pursuers, "
-                f"this scenario has {config.n_pursuers}"
-            )
-        self.policy = policy
-        self.name = policy.name
-        self.missing = trained_evaders - config.n_evaders
-        captured = np.array([config.unobserved_distance, 0.0, 0.0], np.float32)
-        self._pad = np.tile(captured, self.missing)
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        obs = self._check(obs)
-        if not self.missing:
-            return self.policy.act(obs)
-        k = 3 * self.config.n_evaders
-        pad = np.broadcast_to(self._pad, (obs.shape[0], self._pad.size))
-        return self.policy.act(np.concatenate([obs[:, :k], pad, obs[:, k:]], axis=1))
-
-    def reset(self, mask: np.ndarray | None = None) -> None:
-        self.policy.reset(mask)
-
-    def twin(self) -> Policy:
-        inner = self.policy.twin()
-        if inner is self.policy:
-            return self
-        other = copy.copy(self)
-        other.policy = inner
-        return other
-
-
-# ---- manifests and hashes -------------------------------------------------------------------
-def sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
-def pool_dir(pool: str | Path) -> Path:
-    """`hot`, `het` or a folder holding a manifest → the pool's folder."""
-    if isinstance(pool, str) and pool in POOLS:
-        return POOLS_DIR / pool
-    path = Path(pool)
-    if (path / MANIFEST).is_file():
-        return path
-    raise PoolError(
-        f"unknown pool {str(pool)!r}: give one of {', '.join(POOLS)} or a folder with a {MANIFEST}"
-    )
-
-
-def read_manifest(folder: Path) -> dict[str, Any]:
-    path = folder / MANIFEST
-    if not path.is_file():
-        raise PoolError(
-            f"{folder} holds no {MANIFEST}: build it with python -m hola_ray.pools build "
-            f"--pool {folder.name}"
-        )
-    try:
-        manifest = json.loads(path.read_text())
-    except json.JSONDecodeError as err:
-        raise PoolError(f"{path}: not valid JSON ({err}); restore it from git") from err
-    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
-        manifest = manifest if isinstance(manifest, dict) else {}
-        raise PoolError(f"{path}: not a {FORMAT} manifest (format {manifest.get('format')!r})")
-    return manifest
-
-
-def verify(folder: Path, manifest: dict[str, Any]) -> None:
-    """Every member file is there and has the manifest's sha256, or one clear error."""
-    for mid, entry in manifest["members"].items():
-        if entry.get("file") is None:
-            continue
-        path = folder / entry["file"]
-        if not path.is_file():
-            raise PoolError(f"pool {folder.name}: member {mid}'s file {path} is missing")
-        got = sha256(path)
-        if got != entry["sha256"]:
-            raise PoolError(
-                f"pool {folder.name}: {path} has sha256 {got[:12]}…, the manifest says "
-                f"{entry['sha256'][:12]}…: the file changed after the build; restore it "
-                f"(git checkout {path}) or rebuild the pool"
-            )
-
-
-def load_member(folder: Path, mid: str, entry: dict[str, Any], config: PursuitConfig) -> Policy:
-    """One verified member as a policy for the scenario `config`."""
-    kind = entry["kind"]
-    if kind == "handwritten":
-        return make_policy(mid, config)
-    scenario = entry["scenario"]
-    trained = dataclasses.replace(
-        config, n_pursuers=scenario["n_pursuers"], n_evaders=scenario["n_evaders"]
-    )
-    if kind not in ("ppo", "d3qn"):
-        raise PoolError(f"pool {folder.name}: member {mid} has an unknown kind {kind!r}")
-    if kind == "d3qn" and scenario["n_pursuers"] == config.n_pursuers:
-        # D3QN-G reads the first evader only and plays Greedy once it is caught (SPEC §3):
-        # it plays any number of evaders as it is
-        try:
-            return load_policy(folder / entry["file"], config, name=entry["name"])
-        except ValueError as err:
-            raise PoolError(f"pool {folder.name}: member {mid}: {err}") from err
-    try:
-        policy = load_policy(folder / entry["file"], trained, name=entry["name"])
-    except ValueError as err:
-        raise PoolError(f"pool {folder.name}: member {mid}: {err}") from err
-    if trained.n_evaders == config.n_evaders:
-        return policy
-    return ScenarioAdapter(config, policy, trained.n_evaders)
-
-
-def load_validation(pool: str | Path, config: PursuitConfig) -> dict[str, Policy]:
-    """The validation teammates (`VALIDATION` or a folder with a manifest) for `config`'s
-    scenario, every file verified; refused when it shares a member id or a file with an
-    evaluation pool, so no evaluation teammate can enter training, selection or tuning."""
-    if str(pool) in EVALUATION_POOLS:
-        raise PoolError(f"{pool} is an evaluation pool: it never validates training")
-    folder = pool_dir(pool)
-    manifest = read_manifest(folder)
-    held_out = {mid for ids in EVALUATION_POOLS.values() for mid in ids}
-    hashes = {
-        entry.get("sha256")
-        for name in EVALUATION_POOLS
-        if (POOLS_DIR / name / MANIFEST).is_file()
-        for entry in read_manifest(POOLS_DIR / name)["members"].values()
-        if entry.get("sha256")
-    }
-    for mid, entry in manifest["members"].items():
-        if mid in held_out:
-            raise PoolError(f"{folder}: member {mid} belongs to an evaluation pool")
-        if entry.get("sha256") in hashes:
-            raise PoolError(f"{folder}: member {mid}'s file is an evaluation pool member's")
-    return load_pool(folder, config)
-
-
-def load_pool(pool: str | Path, config: PursuitConfig) -> dict[str, Policy]:
-    """A pool's members (id → policy for the scenario `config`), every file verified."""
-    folder = pool_dir(pool)
-    manifest = read_manifest(folder)
-    verify(folder, manifest)
-    return {
-        mid: load_member(folder, mid, entry, config) for mid, entry in manifest["members"].items()
-    }
 
 
 # ---- building -------------------------------------------------------------------------------

@@ -26,7 +26,7 @@ from hola_ray.policies.registry import load_policy, make_policy, policy_names, t
 
 def resolve(name: str, config: PursuitConfig) -> Policy:
     """A policy by registry name, pool member id, run directory or exported file."""
-    from hola_ray.pools import MEMBERS, POOLS, load_pool
+    from hola_ray.evaluation.pools import MEMBERS, POOLS, load_pool
 
     if name.lower() in policy_names():
         return make_policy(name, config)

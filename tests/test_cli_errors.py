@@ -10,8 +10,8 @@ import pytest
 import torch
 
 from hola_ray.env.config import PursuitConfig
+from hola_ray.evaluation.pools import POOLS_DIR
 from hola_ray.policies.learned import random_export
-from hola_ray.pools import POOLS_DIR
 
 
 def one_line(capsys, message: str) -> None:
@@ -81,7 +81,7 @@ def test_pools_bad_inputs(tmp_path, capsys):
     one_line(capsys, "the file changed after the build")
     # a file that matches its manifest but is no torch export
     (broken / "d3qn-g-1.pt").write_text("not torch")
-    from hola_ray.pools import sha256
+    from hola_ray.evaluation.pools import sha256
 
     manifest["members"]["d3qn-g-1"]["sha256"] = sha256(broken / "d3qn-g-1.pt")
     (broken / "manifest.json").write_text(json.dumps(manifest))

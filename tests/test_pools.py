@@ -11,17 +11,17 @@ import pytest
 import torch
 
 from hola_ray.env.config import PursuitConfig
-from hola_ray.policies.learned import MLPPolicy, random_export
-from hola_ray.pools import (
+from hola_ray.evaluation.pools import (
     FORMAT as POOL_FORMAT,
 )
-from hola_ray.pools import (
+from hola_ray.evaluation.pools import (
     MANIFEST,
     PoolError,
     ScenarioAdapter,
     load_pool,
     sha256,
 )
+from hola_ray.policies.learned import MLPPolicy, random_export
 
 TWO = PursuitConfig(n_evaders=2)
 ONE = dataclasses.replace(TWO, n_evaders=1)
@@ -91,8 +91,8 @@ def test_a_two_evader_member_plays_one_evader_as_if_the_other_were_caught(pool):
 
 @pytest.mark.parametrize("name", ["hot", "het"])
 def test_the_committed_pools_load_and_play_their_recorded_table_ii(name):
+    from hola_ray.evaluation.pools import pool_dir, read_manifest
     from hola_ray.evaluation.table import measure, table_scenario
-    from hola_ray.pools import pool_dir, read_manifest
 
     config = table_scenario(TWO)
     members = load_pool(name, config)  # every hash verified
@@ -128,8 +128,7 @@ def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):
     from pathlib import Path
 
     from hola_ray.env.config import ConfigError
-    from hola_ray.methods.config import RunConfig
-    from hola_ray.pools import (
+    from hola_ray.evaluation.pools import (
         EVALUATION_POOLS,
         POOLS_DIR,
         VALIDATION,
@@ -137,6 +136,7 @@ def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):
         pool_dir,
         read_manifest,
     )
+    from hola_ray.methods.config import RunConfig
 
     validation = read_manifest(pool_dir(VALIDATION))["members"]
     held_out = {mid for ids in EVALUATION_POOLS.values() for mid in ids}
@@ -182,5 +182,6 @@ def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):
             for word in ("load_pool(", "read_manifest(", "POOLS_DIR", "import pools"):
                 assert word not in text, (source, word)
             for line in text.splitlines():  # from the pools: the validation set alone
-                if "hola_ray.pools import" in line:
-                    assert line.strip() == "from hola_ray.pools import load_validation", source
+                if "pools import" in line:
+                    expected = "from hola_ray.evaluation.pools import load_validation"
+                    assert line.strip() == expected, source

@@ -17,10 +17,10 @@ import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
+from hola_ray.evaluation.pools import load_validation
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.policies.base import seated
 from hola_ray.policies.registry import load_policy, trained_scenario
-from hola_ray.pools import load_validation
 
 DISCOUNTS = (0.99, 0.997, 1.0)
 

@@ -15,7 +15,7 @@ from hola_ray.env.config import PursuitConfig  # noqa: E402
 
 if TYPE_CHECKING:
     from hola_ray.env.core import BatchedPursuit
-    from hola_ray.evaluation.trajectory import Trajectory
+    from hola_ray.env.trajectory import Trajectory
 
 PURSUER_COLOURS = ("#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#bcbd22")
 EVADER_COLOURS = ("#1f77b4", "#17becf", "#2ca02c", "#7f7f7f")

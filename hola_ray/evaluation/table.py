@@ -2,7 +2,7 @@
 
 `python -m hola_ray.evaluation.table [--episodes 50] [--seeds 0 1 2] [--json]` prints the
 six rows beside the paper's figures: Greedy and VICSEK from their code, PPO (1), (2) and
-D3QN-G (1), (2) from the committed pools (`hola_ray.pools`, hashes verified). A row whose
+D3QN-G (1), (2) from the committed pools (`hola_ray.evaluation.pools`, hashes verified). A row whose
 pool is not built says so. With `--json` the last line is
 `{"rows": {"PPO (1)": {"success": …, "length": …, "collision": …}, …}}`.
 """
@@ -18,6 +18,7 @@ import numpy as np
 
 from hola_ray.cli import OneLineParser, fail
 from hola_ray.env.config import PursuitConfig
+from hola_ray.evaluation.pools import PoolError, load_pool
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import mean_and_se
 from hola_ray.policies.base import Policy
@@ -101,8 +102,6 @@ def paper_rows(
 ) -> tuple[list[dict[str, float | str]], dict[str, str]]:
     """All six of the paper's rows that can be measured here, and why the others cannot
     (row → the pool error)."""
-    from hola_ray.pools import PoolError, load_pool
-
     config = table_scenario()
     measured: dict[str, dict[str, float | str]] = {
         r["agent"]: r for r in table_rows(list(AVAILABLE), episodes, seeds, config)

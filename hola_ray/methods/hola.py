@@ -445,10 +445,10 @@ class Trainer:
 
     def _validation_teammates(self) -> list:
         """The validation set's members for this run's scenario (loaded once; refused if
-        it shares a member with an evaluation pool: `hola_ray.pools.load_validation`)."""
+        it shares a member with an evaluation pool: `hola_ray.evaluation.pools.load_validation`)."""
         c = self.config
         if self._validators is None and c.validation.enabled:
-            from hola_ray.pools import load_validation
+            from hola_ray.evaluation.pools import load_validation
 
             self._validators = list(load_validation(c.validation.pool, c.env).values())
         return self._validators or []

@@ -242,7 +242,7 @@ def test_every_bad_input_is_one_line_and_exit_code_2(tmp_path, capsys, make, mes
 
 def test_a_d3qn_g_export_is_evaluated_as_a_learner(capsys):
     """D3QN-G reads the first evader only: it plays the evaluation's scenario (3 vs 2)."""
-    from hola_ray.pools import POOLS_DIR
+    from hola_ray.evaluation.pools import POOLS_DIR
 
     small = ["--episodes", "4", "--seeds", "0", "--cell-episodes", "1", "--json"]
     assert main([str(POOLS_DIR / "het" / "d3qn-g-1.pt"), "--pool", "hot", *small]) == 0

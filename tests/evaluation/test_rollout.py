@@ -80,7 +80,7 @@ def test_one_stateful_policy_in_several_seats_plays_as_separate_copies(mid):
     """D3QN-G holds its pair per row for `decision_interval` steps: one object listed for
     three seats must play the same episodes as three loaded copies (it once shared and
     overwrote one row state: 95.7 % against 96.3 % success, length 365 against 344)."""
-    from hola_ray.pools import load_pool
+    from hola_ray.evaluation.pools import load_pool
 
     one = PursuitConfig(n_evaders=1)
     shared = load_pool("het", one)[mid]

@@ -1,0 +1,149 @@
+"""The package's layers, read from its imports (function-level and type-only ones too).
+
+Floors, lowest first: env and hypergraph → policies → evaluation → oracle ∥ population →
+methods → the command modules at the top level. A package imports only packages on
+lower floors, plus the shared helpers (`cli`, `interrupt`, `progress`); no package imports
+a command module; no two modules import each other, directly or round a longer circle.
+
+`KNOWN` lists the upward imports that are still there. A new one fails this test, and so
+does an entry that is gone (strike it from the list).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1] / "hola_ray"
+
+FLOORS = {
+    "env": 0,
+    "hypergraph": 0,
+    "policies": 1,
+    "evaluation": 2,
+    "oracle": 3,
+    "population": 3,
+    "methods": 4,
+}
+"""Package → floor; a package imports only packages on lower floors."""
+
+SHARED = {"cli", "interrupt", "progress"}
+"""Top-level helper modules any package may import."""
+
+KNOWN = {
+    ("hola_ray.policies.d3qn_train", "hola_ray.evaluation.rollout"),
+    ("hola_ray.policies.registry", "hola_ray.methods.config"),
+    ("hola_ray.oracle.trainer", "hola_ray.methods.config"),
+    ("hola_ray.population.coordinator", "hola_ray.methods.config"),
+}
+"""Upward imports not yet removed (issue 22 removes them)."""
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports() -> dict[str, set[str]]:
+    """Module → the hola_ray modules it imports anywhere in its file."""
+    modules = {module_name(p): p for p in ROOT.rglob("*.py")}
+    out: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        found: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                found.update(a.name for a in node.names if a.name.startswith("hola_ray"))
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                if not node.module.startswith("hola_ray"):
+                    continue
+                # `from hola_ray.x import y` names module x.y when that is a module
+                subs = {f"{node.module}.{a.name}" for a in node.names}
+                found.update(subs & modules.keys() or {node.module})
+        out[name] = found - {name}
+    return out
+
+
+def place(module: str) -> str:
+    """'env', 'policies', … for a package module; the module's own name at the top level."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "hola_ray"
+
+
+def upward(graph: dict[str, set[str]]) -> set[tuple[str, str]]:
+    bad = set()
+    for source, targets in graph.items():
+        home = place(source)
+        if home not in FLOORS:
+            continue  # a command module or a shared helper: may import packages
+        for target in targets:
+            there = place(target)
+            if there == home or there in SHARED:
+                continue
+            if there not in FLOORS or FLOORS[there] >= FLOORS[home]:
+                bad.add((source, target))
+    return bad
+
+
+def circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import graph's strongly connected components of more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_reader_sees_function_level_and_type_only_imports():
+    graph = imports()
+    # function-level (inside `load_export`) and module-level imports both count
+    assert "hola_ray.methods.config" in graph["hola_ray.policies.registry"]
+    assert "hola_ray.env.trajectory" in graph["hola_ray.env.render"]  # under TYPE_CHECKING
+    assert upward({"hola_ray.env.render": {"hola_ray.evaluation.trajectory"}}) == {
+        ("hola_ray.env.render", "hola_ray.evaluation.trajectory")
+    }
+    assert circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_no_import_runs_up_a_floor_beyond_the_known_ones():
+    bad = upward(imports())
+    assert bad - KNOWN == set(), "new upward imports"
+    assert KNOWN - bad == set(), "gone: strike them from KNOWN"
+
+
+def test_no_package_imports_a_command_module():
+    graph = imports()
+    commands = {m for m in graph if place(m) == "hola_ray" and m != "hola_ray"}
+    commands -= {f"hola_ray.{s}" for s in SHARED}
+    for source, targets in graph.items():
+        if place(source) in FLOORS:
+            assert not targets & commands, (source, targets & commands)
+
+
+def test_no_circles():
+    assert circles(imports()) == []
