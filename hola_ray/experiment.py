@@ -840,22 +840,10 @@ def main(argv: list[str] | None = None) -> int:
             },
         }
         (out / CONFIG_NAME).write_text(yaml.safe_dump(saved, sort_keys=False))
-    import ray
-
     from hola_ray.population.coordinator import NAMESPACE
-    from hola_ray.progress import RAY_RUNTIME_ENV, quiet_ray_noise
+    from hola_ray.progress import init_ray
 
-    quiet_ray_noise()
-    if os.environ.get("RAY_ADDRESS"):
-        ray.init(namespace=NAMESPACE, runtime_env=RAY_RUNTIME_ENV)
-    else:
-        ray.init(
-            address="local",
-            namespace=NAMESPACE,
-            num_cpus=args.num_cpus,
-            include_dashboard=False,
-            runtime_env=RAY_RUNTIME_ENV,
-        )
+    init_ray(NAMESPACE, args.num_cpus)
     trials = experiment.trials()
     print(
         f"experiment in {out}: {len(experiment.methods)} method(s) × {len(experiment.seeds)} "
@@ -870,8 +858,14 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-if __name__ == "__main__":
+def script() -> None:
+    """`hola-experiment` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
+    hola_ray.experiment` runs it (`hola_ray.progress.fixed_hash_seed`)."""
     from hola_ray.progress import fixed_hash_seed
 
     fixed_hash_seed("hola_ray.experiment", sys.argv[1:])
     sys.exit(main())
+
+
+if __name__ == "__main__":
+    script()

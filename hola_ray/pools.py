@@ -201,8 +201,15 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-if __name__ == "__main__":
+def script() -> None:
+    """`hola-pools` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
+    hola_ray.pools` runs it (`hola_ray.progress.fixed_hash_seed`)."""
+
     from hola_ray.progress import fixed_hash_seed
 
-    fixed_hash_seed("hola_ray.pools", sys.argv[1:])  # reproducible builds, as `run`
+    fixed_hash_seed("hola_ray.pools", sys.argv[1:])
     sys.exit(main())
+
+
+if __name__ == "__main__":
+    script()

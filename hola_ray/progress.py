@@ -85,6 +85,29 @@ def init_local_ray(**options: Any) -> None:
     )
 
 
+def init_ray(namespace: str, num_cpus: int | None = None, dashboard: bool = False) -> str | None:
+    """Join the cluster RAY_ADDRESS names, else start a local Ray with `num_cpus` CPUs (all
+    when None) and the dashboard if asked; every worker as `init_local_ray` sets it up.
+    The dashboard's URL, when there is one."""
+    import os
+
+    import ray
+
+    quiet_ray_noise()
+    if os.environ.get("RAY_ADDRESS"):
+        ctx = ray.init(namespace=namespace, runtime_env=RAY_RUNTIME_ENV)
+    else:
+        ctx = ray.init(
+            address="local",
+            namespace=namespace,
+            num_cpus=num_cpus,
+            include_dashboard=dashboard,
+            runtime_env=RAY_RUNTIME_ENV,
+        )
+    url = getattr(ctx, "dashboard_url", None)
+    return f"http://{url}" if url else None
+
+
 def fixed_hash_seed(module: str, argv: list[str]) -> None:
     """Re-run this command with PYTHONHASHSEED=0 unless it is set. RLlib iterates sets of
     module ids in places (the learner's per-module work among them), and a set of strings

@@ -11,7 +11,6 @@ The config is validated before Ray starts.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
@@ -122,25 +121,12 @@ def finished(out: Path, config: RunConfig) -> bool:
 
 def init_ray(args: argparse.Namespace) -> None:
     """Join RAY_ADDRESS's cluster if set, else start a local Ray."""
-    import ray
-
     from hola_ray.population.coordinator import NAMESPACE
-    from hola_ray.progress import RAY_RUNTIME_ENV, quiet_ray_noise
+    from hola_ray.progress import init_ray as start
 
-    quiet_ray_noise()
-    if os.environ.get("RAY_ADDRESS"):
-        ctx = ray.init(namespace=NAMESPACE, runtime_env=RAY_RUNTIME_ENV)
-    else:
-        ctx = ray.init(
-            address="local",
-            namespace=NAMESPACE,
-            num_cpus=args.num_cpus,
-            include_dashboard=not args.no_dashboard,
-            runtime_env=RAY_RUNTIME_ENV,
-        )
-    url = getattr(ctx, "dashboard_url", None)
+    url = start(NAMESPACE, args.num_cpus, dashboard=not args.no_dashboard)
     if url:
-        print(f"Ray dashboard: http://{url}", flush=True)
+        print(f"Ray dashboard: {url}", flush=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -201,8 +187,14 @@ def interrupted(out: Path) -> int:
     return 130
 
 
-if __name__ == "__main__":
+def script() -> None:
+    """`hola-run` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
+    hola_ray.run` runs it (`hola_ray.progress.fixed_hash_seed`)."""
     from hola_ray.progress import fixed_hash_seed
 
     fixed_hash_seed("hola_ray.run", sys.argv[1:])
     sys.exit(main())
+
+
+if __name__ == "__main__":
+    script()

@@ -305,7 +305,8 @@ class Oracle:
                 )
                 bar.update(min(done - before, budget - bar.n))
                 bar.set_postfix(
-                    ret=f"{ret:.1f}",
+                    # RLlib's mean is NaN when no episode ended in the iteration
+                    ret=f"{ret:.1f}" if np.isfinite(ret) else "– (no episode ended)",
                     std=f"{log[-1]['std_median']:.2f}",
                     sps=f"{env_steps / wall:.0f}",
                 )

@@ -407,10 +407,16 @@ def main(argv: list[str] | None = None) -> None:
     print(f"D3QN-G export {path}: {facts}")
 
 
-if __name__ == "__main__":
+def script() -> None:
+    """`hola-d3qn` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
+    hola_ray.policies.d3qn_train` runs it (`hola_ray.progress.fixed_hash_seed`)."""
     import sys
 
     from hola_ray.progress import fixed_hash_seed
 
     fixed_hash_seed("hola_ray.policies.d3qn_train", sys.argv[1:])
     main()
+
+
+if __name__ == "__main__":
+    script()
