@@ -45,7 +45,6 @@ import json
 import sys
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -177,16 +176,6 @@ def pools(names: Sequence[str], partners: Sequence[str], config: PursuitConfig):
 
 
 # ---- BR-Prox score --------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Cells:
-    """Team returns per (combination, seat, seed) cell: of each pool member in the seat
-    (`reference`, [C, n_p, S, M]) and of the learner (`learner`, [C, n_p, S])."""
-
-    combos: list[tuple[int, ...]]
-    reference: np.ndarray
-    learner: np.ndarray
-
-
 def cell_returns(
     candidates: list, members: list, config: PursuitConfig, episodes: int, seeds: Sequence[int]
 ) -> np.ndarray:

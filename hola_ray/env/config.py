@@ -380,16 +380,6 @@ class PursuitConfig:
         """Length of one pursuer's observation (see `ObsLayout`)."""
         return 3 * self.n_evaders + 2 + 2 * (self.n_pursuers - 1) + 4
 
-    @property
-    def pursuer_step(self) -> float:
-        """Distance a pursuer covers per step."""
-        return self.pursuer_speed * self.dt
-
-    @property
-    def evader_step(self) -> float:
-        """Distance an evader covers per step."""
-        return self.evader_speed * self.dt
-
     # ---- (de)serialisation ----------------------------------------------------------
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> PursuitConfig:

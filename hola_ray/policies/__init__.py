@@ -2,7 +2,7 @@
 pursuers exported from RLlib (`MLPPolicy`, plain torch)."""
 
 from hola_ray.policies.apf import APFA, APFConfig, apf_actions
-from hola_ray.policies.base import Policy, turn_to_action
+from hola_ray.policies.base import Policy
 from hola_ray.policies.greedy import Greedy, GreedyConfig
 from hola_ray.policies.learned import MLPPolicy, export_from_rllib
 from hola_ray.policies.registry import make_policy, policy_names
@@ -21,5 +21,4 @@ __all__ = [
     "export_from_rllib",
     "make_policy",
     "policy_names",
-    "turn_to_action",
 ]

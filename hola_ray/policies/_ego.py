@@ -28,9 +28,15 @@ def nearest_live_evader(obs, n, n_evaders, far):
 
 
 @njit(cache=True, inline="always")
+def turn_action(turn, max_turn):
+    """The action in [0, 1] whose heading change (2a − 1)·max_turn is nearest to `turn`
+    (the arena's action rule, SPEC §1)."""
+    return min(max(0.5 + turn / (2.0 * max_turn), 0.0), 1.0)
+
+
+@njit(cache=True, inline="always")
 def to_action(fx, fy, max_turn):
     """Action in [0, 1] turning toward direction (fx, fy) of the own frame; 0.5 if zero."""
     if fx == 0.0 and fy == 0.0:
         return 0.5
-    a = 0.5 + math.atan2(fy, fx) / (2.0 * max_turn)
-    return min(max(a, 0.0), 1.0)
+    return turn_action(math.atan2(fy, fx), max_turn)

@@ -67,8 +67,3 @@ def seated(policies: Sequence[Any]) -> list[Any]:
         seen.add(id(policy))
         out.append(policy)
     return out
-
-
-def turn_to_action(turn: np.ndarray | float, max_turn: float) -> np.ndarray | float:
-    """The action in [0, 1] whose heading change (2a − 1)·max_turn is nearest to `turn`."""
-    return np.clip(0.5 + np.asarray(turn) / (2.0 * max_turn), 0.0, 1.0)

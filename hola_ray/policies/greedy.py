@@ -71,5 +71,5 @@ def _greedy(obs, n_e, k_obst, k_mates, n_mates, scale, far, max_turn, avoid, avo
                 hit = True
         if hit:
             turn = -avoid_turn if near_b >= 0.0 else avoid_turn
-        out[n] = min(max(0.5 + turn / (2.0 * max_turn), 0.0), 1.0)
+        out[n] = _ego.turn_action(turn, max_turn)
     return out
