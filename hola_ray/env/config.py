@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+import types
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -432,9 +433,61 @@ def consume_fields(cls: type, data: Mapping[str, Any], prefix: str) -> dict[str,
             prefix + unknown[0],
         )
     hints = typing.get_type_hints(cls)
-    out = dict(data)
-    for key, value in out.items():
-        whole = isinstance(value, float) and math.isfinite(value) and value.is_integer()
-        if hints.get(key) is int and whole:
-            out[key] = int(value)
-    return out
+    return {key: checked(hints[key], value, prefix + key) for key, value in data.items()}
+
+
+def checked(hint: Any, value: Any, name: str, field_name: str | None = None) -> Any:
+    """`value` as the field's annotation `hint` wants it, or one `ConfigError` naming the
+    field: a count is an int (a whole float such as 1e5 becomes one; a bool, 1.5 or "3" is
+    an error), a number an int or float but not a bool, a string, NaN or ±inf, a flag a
+    bool, a list a list (its items checked the same way), a section a mapping (not null).
+    Ranges are each config's own checks. `field_name`: the field an item of a list
+    belongs to, for the error's location."""
+
+    def fail(wanted: str) -> None:
+        raise ConfigError(f"{name} must be {wanted}, got {value!r}", field_name or name)
+
+    origin = typing.get_origin(hint)
+    if hint is bool:
+        if not isinstance(value, bool):
+            fail("true or false")
+        return value
+    if hint is int:
+        if isinstance(value, float) and math.isfinite(value) and value.is_integer():
+            return int(value)
+        if not isinstance(value, int) or isinstance(value, bool):
+            fail("an integer")
+        return value
+    if hint is float:
+        if not _is_number(value) or not math.isfinite(value):
+            fail("a finite number")
+        return value
+    if hint is str:
+        if not isinstance(value, str):
+            fail("a string")
+        return value
+    if origin in (typing.Union, types.UnionType):
+        options = typing.get_args(hint)
+        if value is None and type(None) in options:
+            return None
+        (inner,) = (o for o in options if o is not type(None))
+        return checked(inner, value, name, field_name)
+    if origin is tuple:
+        if not isinstance(value, list | tuple):
+            fail("a list")
+        args = typing.get_args(hint)
+        if len(args) == 2 and args[1] is Ellipsis:
+            items = [args[0]] * len(value)
+        else:
+            items = list(args)
+            if len(value) != len(items):
+                fail(f"a list of {len(items)} items")
+        return type(value)(
+            checked(h, v, f"{name}[{i}]", field_name or name)
+            for i, (h, v) in enumerate(zip(items, value, strict=True))
+        )
+    if dataclasses.is_dataclass(hint):
+        if not isinstance(value, Mapping):
+            fail("a mapping")
+        return value
+    return value

@@ -83,5 +83,29 @@ def test_numbers_in_scientific_notation_are_numbers(tmp_path):
     assert c.oracle.env_steps == 100_000 and isinstance(c.oracle.env_steps, int)
     assert c.oracle.lr == 3e-4 and c.oracle.train_batch == 2048
     path.write_text("method: hola\noracle:\n  env_steps: 2.5e0\n")  # not a whole number
-    with pytest.raises(ConfigError, match="oracle.env_steps must be an integer >= 1, got 2.5"):
+    with pytest.raises(ConfigError, match="oracle.env_steps must be an integer, got 2.5"):
         RunConfig.from_yaml(path)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("oracle:\n  hidden: 64\n", "oracle.hidden must be a list, got 64"),
+        ("oracle:\n  hidden: [64, 6.5]\n", "oracle.hidden[1] must be an integer, got 6.5"),
+        ("oracle:\n  lr: .nan\n", "oracle.lr must be a finite number, got nan"),
+        ("oracle:\n  lr: '1e-3'\n", "oracle.lr must be a finite number, got '1e-3'"),
+        ("generations: true\n", "generations must be an integer, got True"),
+        ("oracle: null\n", "oracle must be a mapping, got None"),
+        ("env: null\n", "env must be a mapping, got None"),
+        ("env:\n  n_pursuers: true\n", "env.n_pursuers must be an integer, got True"),
+        ("seed: 1.5\n", "seed must be an integer, got 1.5"),
+    ],
+)
+def test_malformed_values_are_one_line_naming_file_line_and_field(tmp_path, text, message):
+    path = tmp_path / "bad.yaml"
+    path.write_text("method: hola\n" + text)
+    with pytest.raises(ConfigError) as err:
+        RunConfig.from_yaml(path)
+    line = str(err.value)
+    assert "\n" not in line and message in line, line
+    assert line.startswith(f"{path}:"), line  # file:line: first
