@@ -109,10 +109,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.teammates == ["copies"]:
             mates = [learner] * (config.n_pursuers - 1)
         elif args.teammates == ["validation"]:
-            from hola_ray.evaluation.pools import load_validation
+            from hola_ray.evaluation.pools import validation_mates
 
-            members = load_validation("validation", config)
-            mates = [members[k] for k in sorted(members)][: config.n_pursuers - 1]
+            mates = validation_mates(config, config.n_pursuers - 1)
         elif len(args.teammates) == config.n_pursuers - 1:
             mates = [make_policy(n, config) for n in args.teammates]
         else:

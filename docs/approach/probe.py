@@ -19,7 +19,7 @@ import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
-from hola_ray.evaluation.pools import load_validation
+from hola_ray.evaluation.pools import validation_mates
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.policies.base import seated
 from hola_ray.policies.registry import load_policy, trained_scenario
@@ -29,8 +29,7 @@ def play(path: Path, episodes: int, seed: int) -> dict[str, np.ndarray]:
     """Per step [T, E]: the learner's approach term both ways and whether it flew; and
     per episode [E] the step of its crash (−1: none)."""
     config = PursuitConfig.from_dict(trained_scenario(path))
-    members = load_validation("validation", config)
-    mates = [members[k] for k in sorted(members)][: config.n_pursuers - 1]
+    mates = validation_mates(config, config.n_pursuers - 1)
     team = seated([load_policy(path, config), *mates])
     env = BatchedPursuit(config, episodes)
     obs = env.reset(seeds=episode_seeds(seed, episodes))

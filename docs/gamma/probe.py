@@ -17,7 +17,7 @@ import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
-from hola_ray.evaluation.pools import load_validation
+from hola_ray.evaluation.pools import validation_mates
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.policies.base import seated
 from hola_ray.policies.registry import load_policy, trained_scenario
@@ -28,8 +28,7 @@ DISCOUNTS = (0.99, 0.997, 1.0)
 def play(path: Path, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The learner's reward per step [T, E], whether it flew [T, E], whether it crashed [E]."""
     config = PursuitConfig.from_dict(trained_scenario(path))
-    members = load_validation("validation", config)
-    mates = [members[k] for k in sorted(members)][: config.n_pursuers - 1]
+    mates = validation_mates(config, config.n_pursuers - 1)
     team = seated([load_policy(path, config), *mates])
     env = BatchedPursuit(config, episodes)
     obs = env.reset(seeds=episode_seeds(seed, episodes))

@@ -251,6 +251,13 @@ def load_validation(pool: str | Path, config: PursuitConfig) -> dict[str, Policy
     return load_pool(folder, config)
 
 
+def validation_mates(config: PursuitConfig, count: int) -> list[Policy]:
+    """The first `count` validation members in name order: the fixed teammates the probes
+    and `benchmarks/crashes.py` seat beside a learner."""
+    members = load_validation(VALIDATION, config)
+    return [members[k] for k in sorted(members)][:count]
+
+
 def load_pool(pool: str | Path, config: PursuitConfig) -> dict[str, Policy]:
     """A pool's members (id → policy for the scenario `config`), every file verified."""
     folder = pool_dir(pool)
