@@ -31,7 +31,7 @@ import ray
 import torch
 
 from hola_ray.methods.config import SAMPLERS, RunConfig
-from hola_ray.oracle import Oracle
+from hola_ray.methods.trainer import make_oracle
 from hola_ray.policies.learned import FORMAT
 from hola_ray.population.grapher import evaluate_edges
 from hola_ray.population.member import MemberPool
@@ -118,7 +118,7 @@ def grapher_speed(config: RunConfig, members: int, episodes: int, rounds: int) -
 def oracle_speed(config: RunConfig, label: str, steps: int, sampler: str) -> dict[str, float]:
     config = dataclasses.replace(config, oracle=dataclasses.replace(config.oracle, sampler=sampler))
     label = f"{label}_{sampler}"
-    oracle = Oracle(config)
+    oracle = make_oracle(config)
     try:
         oracle.train(config.oracle.train_batch, progress=False)  # warm-up iteration
         s = oracle.train(steps, progress=False)
@@ -139,7 +139,7 @@ def oracle_speed(config: RunConfig, label: str, steps: int, sampler: str) -> dic
 
 
 def generation_breakdown(config: RunConfig) -> dict[str, float]:
-    from hola_ray.methods.hola import Trainer
+    from hola_ray.methods.trainer import Trainer
 
     with tempfile.TemporaryDirectory() as tmp:
         rows = Trainer(dataclasses.replace(config, generations=1), tmp, progress=False).fit()

@@ -18,3 +18,34 @@ def fail(message: str) -> int:
     """Print `error: message` as one line on stderr; the exit code 2 to return."""
     print(f"error: {' '.join(str(message).split())}", file=sys.stderr)
     return 2
+
+
+def apply_sets(data: dict, assignments: list[str] | None) -> dict:
+    """`data` (a config as a plain mapping) with each `section.field=value` of `--set`
+    applied; the value is read as YAML (`1e5`, `[64, 64]`, `true`, `null`), and a dotted
+    path may go deeper (`env.reward.approach=distance`). Raises ValueError naming the
+    assignment when it is not `path=value`; the config's own checks judge the value."""
+    import copy
+
+    from hola_ray.env.checks import yaml_value
+
+    out = copy.deepcopy(dict(data))
+    for text in assignments or ():
+        path, eq, raw = text.partition("=")
+        keys = path.strip().split(".")
+        if not eq or not all(keys):
+            raise ValueError(f"--set {text!r}: write section.field=value (e.g. oracle.lr=1e-4)")
+        try:
+            value = yaml_value(raw)
+        except ValueError as err:
+            raise ValueError(f"--set {text!r}: {err}") from None
+        node = out
+        for key in keys[:-1]:
+            inner = node.get(key)
+            if inner is None:
+                inner = node[key] = {}
+            elif not isinstance(inner, dict):
+                raise ValueError(f"--set {text!r}: {key} is not a section")
+            node = inner
+        node[keys[-1]] = value
+    return out

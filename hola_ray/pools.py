@@ -75,7 +75,7 @@ def train_member(member: Member, progress: bool = True) -> tuple[Path, dict[str,
         config = RunConfig.from_yaml(config_path)
         import ray
 
-        from hola_ray.methods.hola import Trainer
+        from hola_ray.methods.trainer import Trainer
         from hola_ray.population.coordinator import NAMESPACE
         from hola_ray.progress import init_local_ray
 
@@ -86,7 +86,7 @@ def train_member(member: Member, progress: bool = True) -> tuple[Path, dict[str,
         facts = {"generation": best["generation"], "env_steps": best["env_steps"]}
         return out / "best.pt", facts
     if member.kind == "d3qn":
-        from hola_ray.policies.d3qn_train import train_d3qn
+        from hola_ray.evaluation.d3qn_train import train_d3qn
 
         return train_d3qn(config_path, out, progress=progress)
     raise PoolError(f"{member.id} is not trained")
@@ -95,7 +95,7 @@ def train_member(member: Member, progress: bool = True) -> tuple[Path, dict[str,
 def member_config(member: Member):
     """A learned member's training config (`RunConfig` or `D3QNRun`): seed, env, values."""
     if member.kind == "d3qn":
-        from hola_ray.policies.d3qn_train import D3QNRun
+        from hola_ray.evaluation.d3qn_train import D3QNRun
 
         return D3QNRun.from_yaml(ROOT / member.config)
     from hola_ray.methods.config import RunConfig

@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from hola_ray import interrupt
-from hola_ray.env.config import ConfigError
+from hola_ray.cli import apply_sets
+from hola_ray.env.config import ConfigError, load_yaml, located
 from hola_ray.methods.config import RunConfig
 
 DEFAULT: dict[str, Any] = {
@@ -67,33 +68,60 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--no-dashboard", action="store_true", help="start the local Ray without its dashboard"
     )
+    parser.add_argument(
+        "--set",
+        action="append",
+        metavar="SECTION.FIELD=VALUE",
+        help="override one config value, read as YAML (repeatable): --set oracle.lr=1e-4 "
+        "--set env.reward.approach=distance --set method=sp",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     return parser.parse_args(argv)
 
 
 def resolve(args: argparse.Namespace) -> tuple[RunConfig, Path]:
     """The validated config and run directory; raises before any work starts."""
-    from hola_ray.methods.hola import check_run_dir
+    from hola_ray.methods.trainer import check_run_dir
 
     if args.resume is not None:
-        if args.config is not None or args.out is not None:
+        if args.config is not None or args.out is not None or args.set:
             raise ConfigError(
-                "--resume RUN_DIR takes the run's own config and directory; drop --config and --out"
+                "--resume RUN_DIR takes the run's own config and directory; drop --config, "
+                "--out and --set"
             )
         check_run_dir(args.resume, resume=True)
         config = RunConfig.from_yaml(args.resume / "config.yaml")
         if args.generations is not None:
             config = with_generations(config, args.generations)
         return config, args.resume
-    if args.config is None:
-        config = RunConfig.from_dict(DEFAULT)
-    else:
-        config = RunConfig.from_yaml(args.config)
+    config = read_config(args.config, args.set)
     if args.generations is not None:
         config = with_generations(config, args.generations)
     out = args.out or Path("runs") / time.strftime(f"{config.method}-%Y%m%d-%H%M%S")
     check_run_dir(out, resume=False)
     return config, out
+
+
+def read_config(path: Path | None, sets: list[str] | None) -> RunConfig:
+    """The run config of `--config` (the embedded default without one) with `--set`'s
+    overrides; an error names the file and line, or the `--set` it came from."""
+    if not sets:
+        return RunConfig.from_dict(DEFAULT) if path is None else RunConfig.from_yaml(path)
+    data = DEFAULT if path is None else load_yaml(path)
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path} is empty or not a mapping: a run config needs its method")
+    try:
+        data = apply_sets(data, sets)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
+    try:
+        return RunConfig.from_dict(data)
+    except ConfigError as err:
+        set_paths = {s.partition("=")[0].strip() for s in sets}
+        field = err.field or ""
+        if any(field == p or field.startswith(p + ".") for p in set_paths):
+            raise ConfigError(f"--set: {err}", err.field) from None
+        raise (located(err, path) if path is not None else err) from None
 
 
 def with_generations(config: RunConfig, generations: int) -> RunConfig:
@@ -151,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         init_ray(args)
         interrupt.install()  # after ray.init: a Ctrl-C swallowed inside Ray is not lost
-        from hola_ray.methods.hola import Trainer
+        from hola_ray.methods.trainer import Trainer
 
         print(
             f"training run in {out}: method {config.method}, {config.generations} "

@@ -1,7 +1,7 @@
 """Where a run stands: `python -m hola_ray.status RUN_DIR [--live] [--plot]`.
 
 Reads the run directory: last completed generation, population with slot, η, φ and node
-value, the last metrics row. With --live (or RAY_ADDRESS set) it also asks the running
+value, the last metrics row. With --live it also asks the running
 coordinator actor for its view, which includes the phase of the generation in progress.
 --plot writes RUN_DIR/progress.png: success, collision and return per generation (accepted
 learners and the best generation marked), φ entropy, and the policy's spread per PPO
@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from hola_ray.evaluation.metrics import TEAM
 from hola_ray.methods.config import RunConfig
 from hola_ray.population.rundir import RunDir
 
@@ -32,10 +33,7 @@ _METRICS = (
     "members_crash",
     "population_team_success",
     "population_team_crash",
-    "learner_success",
-    "learner_return",
-    "learner_collision",
-    "learner_length",
+    *(f"learner_{m.name}" for m in TEAM),
     "std_median",
     "clipped",
     "accepted",
@@ -115,10 +113,7 @@ def plot_progress(run_dir: Path) -> Path:
     learners and the best generation (on the validation curve, its rule) marked; φ entropy
     (self-play: episode length). Per PPO iteration
     (iterations.csv): the trained policy's median std and its clipped fraction."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     run = RunDir(run_dir)
     rows = list(csv.DictReader(run.metrics_csv.open()))
@@ -132,7 +127,8 @@ def plot_progress(run_dir: Path) -> Path:
             [float(r[f"{prefix}_{name}_se"]) for r in have],
         )
 
-    fig, axes = plt.subplots(2, 3, figsize=(13, 7.6))
+    fig = Figure(figsize=(13, 7.6))  # no pyplot, no global backend switched
+    axes = fig.subplots(2, 3)
     for ax, name, label in (
         (axes[0, 0], "success", "success rate"),
         (axes[0, 1], "collision", "collision rate"),
@@ -214,7 +210,6 @@ def plot_progress(run_dir: Path) -> Path:
     fig.tight_layout()
     out = run_dir / "progress.png"
     fig.savefig(out, dpi=120)
-    plt.close(fig)
     return out
 
 
@@ -231,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(json.dumps(view, indent=1) if args.json else format_view(view, "on disk"))
-    if args.live or os.environ.get("RAY_ADDRESS"):
+    if args.live:
         live = live_view(args.run_dir)
         if live is None:
             print("live: no coordinator of this run on the cluster (the run is not running)")

@@ -91,3 +91,15 @@ class _Straight:
 def straight():
     """A pursuer policy that crashes in nearly every episode, in its own seat."""
     return _Straight()
+
+
+@pytest.fixture
+def local_learner():
+    """`local_learner(algo)`: an RLlib algorithm's local Learner, through the public
+    `LearnerGroup.foreach_learner` (not its private `_learner`)."""
+
+    def get(algo):
+        (result,) = algo.learner_group.foreach_learner(lambda learner: learner)
+        return result.get()
+
+    return get

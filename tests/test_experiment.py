@@ -127,14 +127,24 @@ def test_each_trial_is_the_base_with_the_experiment_and_method_overrides(tmp_pat
         ({"color": 1}, r"unknown key\(s\) \['color'\]"),
         ({"methods": {"sp": {"oracle": {"env_steps": -1}}}}, "trial sp-s0: oracle.env_steps"),
         ({"evaluation": {"learner": "last"}}, "evaluation.learner must be final or best"),
+        ({"seeds": [True]}, r"seeds\[0\] must be an integer, got True"),
+        ({"seeds": [1, 1]}, "seeds must be a non-empty list of distinct integers"),
+        ({"parallel": 1.5}, "parallel must be an integer, got 1.5"),
+        ({"evaluation": {"episodes": "50"}}, "evaluation.episodes must be an integer"),
+        ({"evaluation": {"pools": "hot"}}, "evaluation.pools must be a list"),
+        ({"evaluation": {"seeds": []}}, "evaluation.seeds must be a non-empty list"),
+        ({"overrides": [1]}, "overrides must be a mapping"),
+        ({"methods": {"sp": 3}}, "methods.sp must be a mapping of overrides"),
+        ({"evaluation": {"pairs": [["sp", "fcp"]]}}, "evaluation.pairs must be"),
     ],
 )
 def test_a_bad_experiment_config_is_one_clear_error(tmp_path, patch, message):
     config = yaml.safe_load(SMOKE.read_text()) | {"base": str(ROOT / "configs" / "smoke.yaml")}
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(config | patch))
-    with pytest.raises(ConfigError, match=message):
+    with pytest.raises(ConfigError, match=message) as err:
         Experiment.from_yaml(path)
+    assert str(err.value).startswith(str(path)) and "\n" not in str(err.value)
 
 
 def test_methods_and_their_paired_differences_from_every_trials_episodes():

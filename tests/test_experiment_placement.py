@@ -182,7 +182,7 @@ def files(root: Path) -> dict[str, bytes]:
 
 
 def test_a_directory_is_mirrored_change_by_change_and_packs_whole(tmp_path):
-    from hola_ray.mirror import DirectorySync, Mirror, pack, unpack
+    from hola_ray.experiment.mirror import DirectorySync, Mirror, pack, unpack
 
     source, target = tmp_path / "source", tmp_path / "target"
     (source / "generations" / "gen_0000").mkdir(parents=True)

@@ -1,7 +1,7 @@
 """The package's layers, read from its imports (function-level and type-only ones too).
 
 Floors, lowest first: env and hypergraph → policies → evaluation → oracle ∥ population →
-methods → the command modules at the top level. A package imports only packages on
+methods → experiment → the command modules at the top level. A package imports only packages on
 lower floors, plus the shared helpers (`cli`, `interrupt`, `progress`); no package imports
 a command module; no two modules import each other, directly or round a longer circle.
 
@@ -24,19 +24,15 @@ FLOORS = {
     "oracle": 3,
     "population": 3,
     "methods": 4,
+    "experiment": 5,
 }
 """Package → floor; a package imports only packages on lower floors."""
 
 SHARED = {"cli", "interrupt", "progress"}
 """Top-level helper modules any package may import."""
 
-KNOWN = {
-    ("hola_ray.policies.d3qn_train", "hola_ray.evaluation.rollout"),
-    ("hola_ray.policies.registry", "hola_ray.methods.config"),
-    ("hola_ray.oracle.trainer", "hola_ray.methods.config"),
-    ("hola_ray.population.coordinator", "hola_ray.methods.config"),
-}
-"""Upward imports not yet removed (issue 22 removes them)."""
+KNOWN: set[tuple[str, str]] = set()
+"""Upward imports not yet removed (none since issue 22)."""
 
 
 def module_name(path: Path) -> str:
@@ -121,8 +117,8 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_the_reader_sees_function_level_and_type_only_imports():
     graph = imports()
-    # function-level (inside `load_export`) and module-level imports both count
-    assert "hola_ray.methods.config" in graph["hola_ray.policies.registry"]
+    # function-level (inside `_validation_teammates`) and module-level imports both count
+    assert "hola_ray.evaluation.pools" in graph["hola_ray.methods.trainer"]
     assert "hola_ray.env.trajectory" in graph["hola_ray.env.render"]  # under TYPE_CHECKING
     assert upward({"hola_ray.env.render": {"hola_ray.evaluation.trajectory"}}) == {
         ("hola_ray.env.render", "hola_ray.evaluation.trajectory")

@@ -18,6 +18,7 @@ import yaml
 from hola_ray import run, status
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
+from hola_ray.methods.config import RunConfig
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.population.lock import RunLock
 from hola_ray.population.rundir import RunDir
@@ -120,7 +121,7 @@ def test_a_run_killed_between_its_last_generation_and_learner_pt_is_not_done(smo
 
     from hola_ray.experiment import trial_state
     from hola_ray.methods.config import RunConfig
-    from hola_ray.methods.hola import Trainer
+    from hola_ray.methods.trainer import Trainer
 
     out = tmp_path / "killed"
     shutil.copytree(smoke_run[0], out, ignore=shutil.ignore_patterns(".lock"))
@@ -155,7 +156,8 @@ def test_a_run_killed_between_its_last_generation_and_learner_pt_is_not_done(smo
 
 def test_a_generation_folder_plays_as_that_generations_learner(smoke_run, tmp_path):
     """`RUN/generations/gen_0001` loads (evaluate, replay) as generation 1's learner: the
-    export made from its RLlib state with the run's config equals learner.pt."""
+    export kept in the folder equals learner.pt and the one made from its RLlib state with
+    the run's config, so the folder plays on its own, copied anywhere."""
     import shutil
 
     from hola_ray.policies.registry import load_export, load_policy
@@ -167,10 +169,16 @@ def test_a_generation_folder_plays_as_that_generations_learner(smoke_run, tmp_pa
     for w1, w2 in zip(again["weights"], final["weights"], strict=True):
         assert torch.equal(w1, w2)
     env = PursuitConfig.from_yaml(SMOKE)
+    state = torch.load(out / "generations" / "gen_0001" / "learner.rllib.pt", weights_only=False)
+    made = RunConfig.from_yaml(out / "config.yaml").export(state)
+    for w1, w2 in zip(again["weights"], made["weights"], strict=True):
+        assert torch.equal(w1, w2)
     assert load_policy(out / "generations" / "gen_0001", env).name == f"{out.name}-gen_0001"
     lone = tmp_path / "gen_0001"
     shutil.copytree(out / "generations" / "gen_0001", lone)
-    with pytest.raises(ValueError, match="a generation folder, but .*config.yaml is missing"):
+    assert load_export(lone)["scenario"] == final["scenario"]
+    (lone / "learner.pt").unlink()  # as a folder written before generations kept exports
+    with pytest.raises(ValueError, match="written before generations kept their export"):
         load_export(lone)
     with pytest.raises(ValueError, match="neither a run directory with learner.pt"):
         load_export(out / "generations" / "gen_0000")  # pre-training: no learner

@@ -1,6 +1,6 @@
-"""The lever table of README "Measured: why the learner crashes itself", from the runs kept
-here (each folder: config.yaml, metrics.csv, best.json, seated.json; NAME_s1, NAME_s2 are
-seeds 1 and 2 of NAME):
+"""The lever table of docs/crashes.md ("Measured: why the learner crashes itself"), from
+the runs kept here (each folder: config.yaml, metrics.csv, best.json, seated.json; NAME_s1,
+NAME_s2 are seeds 1 and 2 of NAME):
 
     python docs/issue21-levers/summarize.py env samples samples_pre5 samples_pre5a0 \
         samples_col30 samples_shift1 own_move

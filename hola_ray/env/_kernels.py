@@ -3,217 +3,54 @@
 Everything here is plain arrays in, arrays out, grouped in three named tuples: `Params`
 (constants), `Arena` (per-episode state) and `StepOut` (per-step outputs and scratch).
 `core.BatchedPursuit` owns the arrays and is the only caller. The parameter vector `fp` is
-indexed by the `F_*` constants below and filled by `pack_params`; obstacles arrive as
-`rects` [K, 4] = (x_min, y_min, x_max, y_max).
+indexed by the `F_*` constants of `hola_ray.env._arena` and filled by its `pack_params`;
+obstacles arrive as `rects` [K, 4] = (x_min, y_min, x_max, y_max). The evader's decision
+is `hola_ray.env._evader`.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
-import numpy as np
 from numba import njit, prange
 
 from hola_ray.env import _rng
-from hola_ray.env.config import PursuitConfig
+from hola_ray.env._arena import (
+    F_APPROACH_OWN,
+    F_APPROACH_SCALE,
+    F_CAPTURE,
+    F_CAPTURE_REWARD,
+    F_COLLISION_PENALTY,
+    F_DT,
+    F_E_MIN_CLEAR,
+    F_HEIGHT,
+    F_KAPPA,
+    F_MATE_PENALTY,
+    F_MATE_REACH,
+    F_MAX_TURN,
+    F_OBS_SCALE,
+    F_OBSTACLE_PENALTY,
+    F_OBSTACLE_REACH,
+    F_PERCEPTION,
+    F_SAFE,
+    F_SPAWN_SEP,
+    F_UNOBSERVED,
+    F_V_E,
+    F_V_P,
+    F_WIDTH,
+    I_HORIZON,
+    Arena,
+    Params,
+    StepOut,
+    nearest_static,
+    pack_params,
+)
+from hola_ray.env._evader import evader_heading
 from hola_ray.env.geometry import norm, wrap
 
-# ---- packed float parameters --------------------------------------------------------
-F_WIDTH = 0
-F_HEIGHT = 1
-F_DT = 2
-F_V_P = 3
-F_V_E = 4
-F_MAX_TURN = 5
-F_CAPTURE = 6
-F_PERCEPTION = 7
-F_SAFE = 8
-F_KAPPA = 9
-F_OBS_SCALE = 10
-F_UNOBSERVED = 11
-F_CAPTURE_REWARD = 12
-F_COLLISION_PENALTY = 13
-F_APPROACH_SCALE = 14
-F_E_SENS = 15
-F_E_PANIC = 16
-F_E_WANDER_CLEAR = 17
-F_E_REP_GAIN = 18
-F_E_REP_RANGE = 19
-F_E_REP_OFFSET = 20
-F_E_SWITCH = 21
-F_E_PUSH = 22
-F_E_SLIP_RANGE = 23
-F_E_SLIP_START = 24
-F_E_SLIP_KEEP = 25
-F_E_MAX_TURN = 26
-F_E_MIN_CLEAR = 27
-F_SPAWN_SEP = 28
-F_OBSTACLE_PENALTY = 29
-F_OBSTACLE_REACH = 30
-F_MATE_PENALTY = 31
-F_MATE_REACH = 32
-F_APPROACH_OWN = 33
-N_FLOAT_PARAMS = 34
-
-# ---- packed integer parameters ------------------------------------------------------
-I_HORIZON = 0
-I_HOLD_MIN = 1
-I_HOLD_MAX = 2
-N_INT_PARAMS = 3
-
-_E = math.e
-_REP_MIN = 0.005  # floor of (d − offset) in the repulsion, so a grazing evader stays finite
+__all__ = ["Arena", "Params", "StepOut", "observe_all", "pack_params", "reset_masked", "step_all"]
 
 
-class Params(NamedTuple):
-    """Constants of the scenario, packed for the kernels."""
-
-    fp: np.ndarray  # [N_FLOAT_PARAMS] float64, indexed by F_*
-    ip: np.ndarray  # [N_INT_PARAMS] int64, indexed by I_*
-    rects: np.ndarray  # [K, 4] bars as (x_min, y_min, x_max, y_max)
-    spawn: np.ndarray  # [2, 4] pursuer then evader spawn region (x0, x1, y0, y1)
-
-
-class Arena(NamedTuple):
-    """Per-episode state of a batch of B episodes (n_p pursuers, n_e evaders)."""
-
-    ppos: np.ndarray  # [B, n_p, 2] pursuer positions
-    phead: np.ndarray  # [B, n_p] pursuer headings
-    pactive: np.ndarray  # [B, n_p] bool, not disabled
-    epos: np.ndarray  # [B, n_e, 2] evader positions
-    ehead: np.ndarray  # [B, n_e] evader headings
-    ealive: np.ndarray  # [B, n_e] bool, not captured
-    wander_left: np.ndarray  # [B, n_e] int64, steps the wander heading is still held
-    wander_dir: np.ndarray  # [B, n_e] the wander heading
-    slip: np.ndarray  # [B, n_e] bool, slipping between two pursuers
-    slip_dir: np.ndarray  # [B, n_e, 2] direction of the slip when it started
-    t: np.ndarray  # [B] int64 steps taken
-    done: np.ndarray  # [B] bool, episode over
-    collided: np.ndarray  # [B] bool, a collision happened
-    captures: np.ndarray  # [B] int64 evaders captured
-    ep_return: np.ndarray  # [B, n_p] summed rewards
-    rng: np.ndarray  # [B] uint64 SplitMix64 stream states
-
-
-class StepOut(NamedTuple):
-    """What a step writes, plus scratch space."""
-
-    obs: np.ndarray  # [B, n_p, obs_dim] float32
-    reward: np.ndarray  # [B, n_p]
-    terminated: np.ndarray  # [B] bool
-    truncated: np.ndarray  # [B] bool
-    disabled: np.ndarray  # [B, n_p] bool, collided this step
-    new_heading: np.ndarray  # [B, n_e] scratch: evader decisions
-    dist_prev: np.ndarray  # [B, n_p, n_e] scratch: distances before the move
-
-
-def pack_params(config: PursuitConfig) -> Params:
-    """The scenario's constants in kernel form."""
-    ev = config.evader
-    fp = np.zeros(N_FLOAT_PARAMS, dtype=np.float64)
-    fp[F_WIDTH] = config.arena_width
-    fp[F_HEIGHT] = config.arena_height
-    fp[F_DT] = config.dt
-    fp[F_V_P] = config.pursuer_speed
-    fp[F_V_E] = config.evader_speed
-    fp[F_MAX_TURN] = config.max_turn
-    fp[F_CAPTURE] = config.capture_distance
-    fp[F_PERCEPTION] = config.perception_range
-    fp[F_SAFE] = config.safe_radius
-    fp[F_KAPPA] = config.pursuer_collision_distance
-    fp[F_OBS_SCALE] = config.obs_distance_scale
-    fp[F_UNOBSERVED] = config.unobserved_distance
-    reward = config.reward
-    fp[F_CAPTURE_REWARD] = reward.capture
-    fp[F_COLLISION_PENALTY] = reward.collision
-    fp[F_APPROACH_SCALE] = reward.approach_scale
-    fp[F_OBSTACLE_PENALTY] = reward.obstacle_penalty
-    fp[F_OBSTACLE_REACH] = reward.obstacle_distance
-    fp[F_MATE_PENALTY] = reward.teammate_penalty
-    fp[F_MATE_REACH] = reward.teammate_distance
-    fp[F_APPROACH_OWN] = float(reward.approach == "own_move")
-    fp[F_E_SENS] = ev.sensitivity_range
-    fp[F_E_PANIC] = ev.panic_threshold
-    fp[F_E_WANDER_CLEAR] = ev.wander_clearance
-    fp[F_E_REP_GAIN] = ev.repulsion_gain
-    fp[F_E_REP_RANGE] = ev.repulsion_range
-    fp[F_E_REP_OFFSET] = ev.repulsion_offset
-    fp[F_E_SWITCH] = ev.wall_follow_switch_distance
-    fp[F_E_PUSH] = ev.wall_follow_push_distance
-    fp[F_E_SLIP_RANGE] = ev.slip_range
-    fp[F_E_SLIP_START] = ev.slip_start_clearance
-    fp[F_E_SLIP_KEEP] = ev.slip_keep_clearance
-    fp[F_E_MAX_TURN] = ev.max_turn
-    fp[F_E_MIN_CLEAR] = ev.min_clearance
-    fp[F_SPAWN_SEP] = config.spawn_separation
-    ip = np.array([config.horizon, ev.wander_hold_min, ev.wander_hold_max], dtype=np.int64)
-    rects = np.array(
-        [(cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2) for cx, cy, w, h in config.obstacles],
-        dtype=np.float64,
-    ).reshape(-1, 4)
-    spawn = np.array([config.pursuer_spawn, config.evader_spawn], dtype=np.float64)
-    return Params(fp, ip, rects, spawn)
-
-
-# ---- geometry -------------------------------------------------------------------------
-@njit(cache=True)
-def nearest_static(px, py, rects, width, height):
-    """Nearest point (qx, qy) on the walls or any bar to (px, py), and its distance."""
-    qx, qy, best = 0.0, py, px  # left wall
-    if width - px < best:
-        qx, qy, best = width, py, width - px
-    if py < best:
-        qx, qy, best = px, 0.0, py
-    if height - py < best:
-        qx, qy, best = px, height, height - py
-    for k in range(rects.shape[0]):
-        cx = min(max(px, rects[k, 0]), rects[k, 2])
-        cy = min(max(py, rects[k, 1]), rects[k, 3])
-        d = norm(px - cx, py - cy)
-        if d < best:
-            qx, qy, best = cx, cy, d
-    return qx, qy, best
-
-
-@njit(cache=True, inline="always")
-def _repulse(px, py, qx, qy, d, gain, reach, offset):
-    """DACOOP obstacle repulsion from point q: gain·(1/(d−r) − 1/R)/(d−r)² along p − q."""
-    if d >= reach or d <= 0.0:
-        return 0.0, 0.0
-    s = max(d - offset, _REP_MIN)
-    mag = gain * (1.0 / s - 1.0 / reach) / (s * s)
-    return mag * (px - qx) / d, mag * (py - qy) / d
-
-
-@njit(cache=True)
-def evader_repulsion(px, py, rects, width, height, gain, reach, offset):
-    """Sum of repulsions from the nearest point of each wall and bar within reach."""
-    fx, fy = 0.0, 0.0
-    # walls: left, right, bottom, top
-    gx, gy = _repulse(px, py, 0.0, py, px, gain, reach, offset)
-    fx += gx
-    fy += gy
-    gx, gy = _repulse(px, py, width, py, width - px, gain, reach, offset)
-    fx += gx
-    fy += gy
-    gx, gy = _repulse(px, py, px, 0.0, py, gain, reach, offset)
-    fx += gx
-    fy += gy
-    gx, gy = _repulse(px, py, px, height, height - py, gain, reach, offset)
-    fx += gx
-    fy += gy
-    for k in range(rects.shape[0]):
-        cx = min(max(px, rects[k, 0]), rects[k, 2])
-        cy = min(max(py, rects[k, 1]), rects[k, 3])
-        d = norm(px - cx, py - cy)
-        gx, gy = _repulse(px, py, cx, cy, d, gain, reach, offset)
-        fx += gx
-        fy += gy
-    return fx, fy
-
-
-# ---- reset ------------------------------------------------------------------------------
 @njit(cache=True)
 def _place(rng, b, out, n, region, separation):
     """Rejection-sample n points in region (x0, x1, y0, y1), pairwise ≥ separation apart."""
@@ -329,148 +166,6 @@ def observe(b, p, s, obs):
         obs[b, i, k + 3] = math.sin(h)
 
 
-# ---- evader (SPEC §2) --------------------------------------------------------------------
-@njit(cache=True)
-def evader_heading(b, e, p, s):
-    """The DACOOP escaper's new heading for evader e of episode b, from the true state.
-
-    Wander when calm and clear of obstacles; otherwise flee from the pursuers within the
-    sensitivity range, pushed off obstacles; follow the wall when flight and repulsion
-    oppose; slip between two close pursuers when the gap is reachable first. The heading
-    change is bounded by the evader's max turn.
-    """
-    fp, ip, rects, spawn = p
-    # fmt: off
-    (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
-     t, done, collided, captures, ep_return, rng) = s
-    # fmt: on
-    n_p = ppos.shape[1]
-    ex = epos[b, e, 0]
-    ey = epos[b, e, 1]
-    h = ehead[b, e]
-    hx = math.cos(h)
-    hy = math.sin(h)
-    sens = fp[F_E_SENS]
-
-    # flee force and the two nearest active pursuers
-    flee_x, flee_y = 0.0, 0.0
-    n_flee = 0
-    n_slip = 0
-    d1, d2 = np.inf, np.inf
-    i1, i2 = -1, -1
-    for i in range(n_p):
-        if not pactive[b, i]:
-            continue
-        ax = ex - ppos[b, i, 0]
-        ay = ey - ppos[b, i, 1]
-        d = norm(ax, ay)
-        if d < sens and d > 0.0:
-            flee_x += ax / (d * d)
-            flee_y += ay / (d * d)
-            n_flee += 1
-        if d < fp[F_E_SLIP_RANGE]:
-            n_slip += 1
-        if d < d1:
-            d2, i2 = d1, i1
-            d1, i1 = d, i
-        elif d < d2:
-            d2, i2 = d, i
-    d_min = d1
-
-    _, _, d_obs = nearest_static(ex, ey, rects, fp[F_WIDTH], fp[F_HEIGHT])
-    rep_x, rep_y = evader_repulsion(
-        ex,
-        ey,
-        rects,
-        fp[F_WIDTH],
-        fp[F_HEIGHT],
-        fp[F_E_REP_GAIN],
-        fp[F_E_REP_RANGE],
-        fp[F_E_REP_OFFSET],
-    )
-
-    panic = 0.0
-    if d_min < sens:
-        panic = (math.exp(1.0 - d_min / sens) - 1.0) / (_E - 1.0)
-
-    if panic < fp[F_E_PANIC] and d_obs > fp[F_E_WANDER_CLEAR]:
-        if wander_left[b, e] <= 0:
-            wander_dir[b, e] = wrap(h + (_rng.uniform(rng, b) - 0.5) * math.pi)
-            wander_left[b, e] = _rng.integer(rng, b, ip[I_HOLD_MIN], ip[I_HOLD_MAX])
-        wander_left[b, e] -= 1
-        esc_x = math.cos(wander_dir[b, e])
-        esc_y = math.sin(wander_dir[b, e])
-    else:
-        wander_left[b, e] = 0
-        flee_norm = norm(flee_x, flee_y)
-        if n_flee > 0 and flee_norm > 0.0:
-            esc_x, esc_y = flee_x / flee_norm, flee_y / flee_norm
-        else:
-            esc_x, esc_y = 0.0, 0.0
-
-    tot_x = esc_x + rep_x
-    tot_y = esc_y + rep_y
-    if tot_x * esc_x + tot_y * esc_y < 0.0:
-        # wall following: move along the obstacle tangent nearer the current heading
-        r1x, r1y = -rep_y, rep_x
-        r2x, r2y = rep_y, -rep_x
-        against = -(esc_x * rep_x + esc_y * rep_y)
-        if hx * r1x + hy * r1y > 0.0:
-            tot_x, tot_y = r1x, r1y
-            if d_min < fp[F_E_SWITCH] and 1.5 * (esc_x * r2x + esc_y * r2y) > against:
-                tot_x, tot_y = r2x, r2y
-        else:
-            tot_x, tot_y = r2x, r2y
-            if d_min < fp[F_E_SWITCH] and 1.5 * (esc_x * r1x + esc_y * r1y) > against:
-                tot_x, tot_y = r1x, r1y
-        if d_obs < fp[F_E_PUSH]:
-            tot_x += rep_x
-            tot_y += rep_y
-
-    # slip between the two nearest pursuers (Janosov et al. 2017, DACOOP)
-    if n_slip >= 2:
-        a1x = ppos[b, i1, 0] - ex
-        a1y = ppos[b, i1, 1] - ey
-        a2x = ppos[b, i2, 0] - ex
-        a2y = ppos[b, i2, 1] - ey
-        gx = a1x + a2x
-        gy = a1y + a2y
-        gn = norm(gx, gy)
-        reachable = False
-        if gn > 0.0:
-            gx /= gn
-            gy /= gn
-            p1 = gx * a1x + gy * a1y
-            p2 = gx * a2x + gy * a2y
-            tau_e1 = abs(p1) / fp[F_V_E]
-            tau_e2 = abs(p2) / fp[F_V_E]
-            tau_c1 = (norm(gx * p1 - a1x, gy * p1 - a1y) - fp[F_CAPTURE]) / fp[F_V_P]
-            tau_c2 = (norm(gx * p2 - a2x, gy * p2 - a2y) - fp[F_CAPTURE]) / fp[F_V_P]
-            reachable = tau_e1 < tau_c1 and tau_e2 < tau_c2
-        if not slip[b, e]:
-            if reachable and d_obs < fp[F_E_SLIP_START] and rep_x * gx + rep_y * gy >= 0.0:
-                tot_x, tot_y = gx, gy
-                slip_dir[b, e, 0] = gx
-                slip_dir[b, e, 1] = gy
-                slip[b, e] = True
-        elif reachable and d_obs > fp[F_E_SLIP_KEEP]:
-            if gx * slip_dir[b, e, 0] + gy * slip_dir[b, e, 1] >= 0.0:
-                tot_x, tot_y = gx, gy
-            else:
-                tot_x, tot_y = -gx, -gy
-        else:
-            slip[b, e] = False
-    else:
-        slip[b, e] = False
-
-    if tot_x == 0.0 and tot_y == 0.0:
-        return h
-    turn = wrap(math.atan2(tot_y, tot_x) - h)
-    limit = fp[F_E_MAX_TURN]
-    turn = min(max(turn, -limit), limit)
-    return wrap(h + turn)
-
-
 # ---- step -----------------------------------------------------------------------------------
 @njit(cache=True)
 def approach_term(b, i, p, s, dist_prev):
@@ -486,88 +181,76 @@ def approach_term(b, i, p, s, dist_prev):
     return r
 
 
-@njit(cache=True)
-def step_episode(b, actions, p, s, out):
-    """Advance episode b by one step with pursuer actions [n_p] in [0, 1] (already clipped)."""
-    fp, ip, rects, spawn = p
-    # fmt: off
-    (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
-     t, done, collided, captures, ep_return, rng) = s
-    # fmt: on
-    obs, reward, terminated, truncated, disabled, new_heading, dist_prev = out
-    n_p = ppos.shape[1]
-    n_e = epos.shape[1]
-    for i in range(n_p):
-        reward[b, i] = 0.0
-        disabled[b, i] = False
-    terminated[b] = False
-    truncated[b] = False
-    if done[b]:
-        return
-    t[b] += 1
-
-    # distances before the move, for the approach term
-    for i in range(n_p):
-        for e in range(n_e):
-            dist_prev[b, i, e] = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
-
-    # evaders decide on the state before anyone moves (simultaneous moves)
-    for e in range(n_e):
-        if ealive[b, e]:
-            new_heading[b, e] = evader_heading(b, e, p, s)
-
+@njit(cache=True, inline="always")
+def _move_pursuers(b, actions, p, s):
+    """Each active pursuer turns by (2a − 1)·max_turn and moves at its speed."""
+    fp = p.fp
     step_p = fp[F_V_P] * fp[F_DT]
-    for i in range(n_p):
-        if pactive[b, i]:
-            h = wrap(phead[b, i] + (2.0 * actions[b, i] - 1.0) * fp[F_MAX_TURN])
-            phead[b, i] = h
-            ppos[b, i, 0] += step_p * math.cos(h)
-            ppos[b, i, 1] += step_p * math.sin(h)
+    for i in range(s.ppos.shape[1]):
+        if s.pactive[b, i]:
+            h = wrap(s.phead[b, i] + (2.0 * actions[b, i] - 1.0) * fp[F_MAX_TURN])
+            s.phead[b, i] = h
+            s.ppos[b, i, 0] += step_p * math.cos(h)
+            s.ppos[b, i, 1] += step_p * math.sin(h)
 
-    # the approach term credited to the pursuer's own move: to where the evaders were
-    if fp[F_APPROACH_OWN] > 0.0:
-        for i in range(n_p):
-            if pactive[b, i]:
-                reward[b, i] = approach_term(b, i, p, s, dist_prev)
 
+@njit(cache=True, inline="always")
+def _move_evaders(b, p, s, new_heading):
+    """Each live evader takes its decided heading; a move that would end closer than
+    min_clearance to a wall or bar is not made."""
+    fp, rects = p.fp, p.rects
     step_e = fp[F_V_E] * fp[F_DT]
-    for e in range(n_e):
-        if ealive[b, e]:
+    for e in range(s.epos.shape[1]):
+        if s.ealive[b, e]:
             h = new_heading[b, e]
-            ehead[b, e] = h
-            nx = epos[b, e, 0] + step_e * math.cos(h)
-            ny = epos[b, e, 1] + step_e * math.sin(h)
+            s.ehead[b, e] = h
+            nx = s.epos[b, e, 0] + step_e * math.cos(h)
+            ny = s.epos[b, e, 1] + step_e * math.sin(h)
             _, _, clearance = nearest_static(nx, ny, rects, fp[F_WIDTH], fp[F_HEIGHT])
             if clearance >= fp[F_E_MIN_CLEAR]:
-                epos[b, e, 0] = nx
-                epos[b, e, 1] = ny
+                s.epos[b, e, 0] = nx
+                s.epos[b, e, 1] = ny
 
-    # approach term over the evaders live at the start of the step (after both moves)
-    if fp[F_APPROACH_OWN] == 0.0:
-        for i in range(n_p):
-            if pactive[b, i]:
-                reward[b, i] = approach_term(b, i, p, s, dist_prev)
 
-    # captures, by any pursuer active this step; the bonus is shared by every active pursuer
+@njit(cache=True, inline="always")
+def _approach(b, p, s, reward, dist_prev):
+    """The approach term of every active pursuer (`approach_term`)."""
+    for i in range(s.ppos.shape[1]):
+        if s.pactive[b, i]:
+            reward[b, i] = approach_term(b, i, p, s, dist_prev)
+
+
+@njit(cache=True, inline="always")
+def _captures(b, p, s, reward):
+    """Captures, by any pursuer active this step; the bonus is shared by every active
+    pursuer."""
+    fp, ppos, pactive = p.fp, s.ppos, s.pactive
+    n_p = ppos.shape[1]
     caught = 0
-    for e in range(n_e):
-        if not ealive[b, e]:
+    for e in range(s.epos.shape[1]):
+        if not s.ealive[b, e]:
             continue
         for i in range(n_p):
             if pactive[b, i]:
-                d = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
+                d = norm(s.epos[b, e, 0] - ppos[b, i, 0], s.epos[b, e, 1] - ppos[b, i, 1])
                 if d < fp[F_CAPTURE]:
-                    ealive[b, e] = False
+                    s.ealive[b, e] = False
                     caught += 1
                     break
     if caught > 0:
-        captures[b] += caught
+        s.captures[b] += caught
         for i in range(n_p):
             if pactive[b, i]:
                 reward[b, i] += fp[F_CAPTURE_REWARD] * caught
 
-    # collisions: walls, bars and disabled pursuers (safe radius); active pairs (κ);
-    # and the proximity penalties (obstacles, disabled pursuers; active teammates)
+
+@njit(cache=True, inline="always")
+def _collisions(b, p, s, reward, disabled):
+    """Collisions: walls, bars and disabled pursuers (safe radius); active pairs (κ); and
+    the proximity penalties (obstacles, disabled pursuers; active teammates). A pursuer
+    that collided is disabled."""
+    fp, rects, ppos, pactive = p.fp, p.rects, s.ppos, s.pactive
+    n_p = ppos.shape[1]
     any_collision = False
     for i in range(n_p):
         if not pactive[b, i]:
@@ -597,15 +280,52 @@ def step_episode(b, actions, p, s, out):
             reward[b, i] -= fp[F_COLLISION_PENALTY]
             any_collision = True
     if any_collision:
-        collided[b] = True
+        s.collided[b] = True
         for i in range(n_p):
             if disabled[b, i]:
                 pactive[b, i] = False
 
-    for i in range(n_p):
-        ep_return[b, i] += reward[b, i]
 
-    all_caught = captures[b] >= n_e
+@njit(cache=True)
+def step_episode(b, actions, p, s, out):
+    """Advance episode b by one step with pursuer actions [n_p] in [0, 1] (already clipped)."""
+    fp, ip = p.fp, p.ip
+    obs, reward, terminated, truncated, disabled, new_heading, dist_prev = out
+    ppos, epos, pactive, done, t = s.ppos, s.epos, s.pactive, s.done, s.t
+    n_p = ppos.shape[1]
+    n_e = epos.shape[1]
+    for i in range(n_p):
+        reward[b, i] = 0.0
+        disabled[b, i] = False
+    terminated[b] = False
+    truncated[b] = False
+    if done[b]:
+        return
+    t[b] += 1
+
+    # distances before the move, for the approach term
+    for i in range(n_p):
+        for e in range(n_e):
+            dist_prev[b, i, e] = norm(epos[b, e, 0] - ppos[b, i, 0], epos[b, e, 1] - ppos[b, i, 1])
+
+    # evaders decide on the state before anyone moves (simultaneous moves)
+    for e in range(n_e):
+        if s.ealive[b, e]:
+            new_heading[b, e] = evader_heading(b, e, p, s)
+
+    _move_pursuers(b, actions, p, s)
+    if fp[F_APPROACH_OWN] > 0.0:  # credited to the pursuer's own move: to where they were
+        _approach(b, p, s, reward, dist_prev)
+    _move_evaders(b, p, s, new_heading)
+    if fp[F_APPROACH_OWN] == 0.0:  # over the evaders live at the start (after both moves)
+        _approach(b, p, s, reward, dist_prev)
+    _captures(b, p, s, reward)
+    _collisions(b, p, s, reward, disabled)
+
+    for i in range(n_p):
+        s.ep_return[b, i] += reward[b, i]
+
+    all_caught = s.captures[b] >= n_e
     all_down = True
     for i in range(n_p):
         if pactive[b, i]:

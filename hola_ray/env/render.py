@@ -4,14 +4,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import matplotlib
+import numpy as np
+from matplotlib import patches
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib import patches  # noqa: E402
-
-from hola_ray.env.config import PursuitConfig  # noqa: E402
+from hola_ray.env.config import PursuitConfig
 
 if TYPE_CHECKING:
     from hola_ray.env.core import BatchedPursuit
@@ -25,7 +24,7 @@ def _colour(palette: tuple[str, ...], i: int) -> str:
     return palette[i % len(palette)]
 
 
-def draw_arena(ax: plt.Axes, config: PursuitConfig) -> None:
+def draw_arena(ax: Axes, config: PursuitConfig) -> None:
     """Walls, bars and the two spawn regions."""
     w, h = config.arena_width, config.arena_height
     ax.add_patch(patches.Rectangle((0, 0), w, h, fill=False, lw=2, ec="black"))
@@ -43,15 +42,18 @@ def draw_arena(ax: plt.Axes, config: PursuitConfig) -> None:
     ax.set_yticks([])
 
 
-def _figure(config: PursuitConfig, height_in: float = 6.0) -> tuple[plt.Figure, plt.Axes]:
+def _figure(config: PursuitConfig, height_in: float = 6.0) -> tuple[Figure, Axes]:
     ratio = (config.arena_width + 0.2) / (config.arena_height + 0.2)
-    fig, ax = plt.subplots(figsize=(height_in * ratio + 0.2, height_in + 0.4), dpi=80)
+    # a Figure of its own on the Agg canvas: no pyplot, no global backend switched
+    fig = Figure(figsize=(height_in * ratio + 0.2, height_in + 0.4), dpi=80)
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
     fig.subplots_adjust(left=0.02, right=0.98, bottom=0.02, top=0.93)
     draw_arena(ax, config)
     return fig, ax
 
 
-def _canvas_rgb(fig: plt.Figure) -> np.ndarray:
+def _canvas_rgb(fig: Figure) -> np.ndarray:
     fig.canvas.draw()
     return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
 
@@ -69,7 +71,6 @@ def render_frame(config: PursuitConfig, core: BatchedPursuit, b: int) -> np.ndar
             ax.plot(x, y, "^", color=_colour(EVADER_COLOURS, e), ms=8)
     ax.set_title(f"t = {int(core.t[b])}", fontsize=9)
     image = _canvas_rgb(fig)
-    plt.close(fig)
     return image
 
 
@@ -105,7 +106,6 @@ def plot_trajectory(config: PursuitConfig, traj: Trajectory, path: str) -> None:
     fig.subplots_adjust(bottom=0.1)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, fontsize=6, frameon=False)
     fig.savefig(path)
-    plt.close(fig)
 
 
 def animate_trajectory(
@@ -163,7 +163,6 @@ def animate_trajectory(
         crash_marks.set_data([w[0] for w in crashed], [w[1] for w in crashed])
         title.set_text(f"t = {t} / {traj.steps}   caught {len(caught)}/{n_e}")
         images.append(Image.fromarray(_canvas_rgb(fig)))
-    plt.close(fig)
     images[0].save(
         path,
         save_all=True,

@@ -28,11 +28,13 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-MEANS = ("success", "collision", "length", "reward", "learner_crash", "teammate_crash")
-"""per-episode values whose figure is their mean: success, collision (any seat crashed),
-length (steps, the horizon when truncated), reward (the mean per-pursuer return: AT-Drone's
-REW), learner_crash (the learner's own seat crashed), teammate_crash (the share of teammate
-seats that crashed)"""
+from hola_ray.evaluation.metrics import ZERO_SHOT
+
+MEANS = tuple(m.name for m in ZERO_SHOT)
+"""per-episode values whose figure is their mean (`hola_ray.evaluation.metrics.ZERO_SHOT`):
+success, collision (any seat crashed), length (steps, the horizon when truncated), reward
+(the mean per-pursuer return: AT-Drone's REW), learner_crash (the learner's own seat
+crashed), teammate_crash (the share of teammate seats that crashed)"""
 METRICS = (*MEANS, "steps_success")
 """every figure; steps_success is the mean length over successful episodes only (AT-Drone's
 AST): a ratio, NaN where no episode succeeded"""

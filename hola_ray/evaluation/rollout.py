@@ -9,6 +9,7 @@ import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
+from hola_ray.evaluation.metrics import TEAM
 from hola_ray.evaluation.stats import episode_seeds as derive_seeds
 from hola_ray.evaluation.stats import mean_and_se
 from hola_ray.policies.base import Policy, seated
@@ -49,7 +50,7 @@ class RolloutResult:
     def summary(self) -> dict[str, float]:
         """Rates and means with their standard errors, as plain floats."""
         out: dict[str, float] = {"episodes": float(self.episodes)}
-        for name in ("success", "collision", "length", "team_return"):
+        for name in (m.field for m in TEAM):
             mean, se = mean_and_se(getattr(self, name))
             out[name] = mean
             out[f"{name}_se"] = se

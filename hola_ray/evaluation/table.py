@@ -18,6 +18,7 @@ import numpy as np
 
 from hola_ray.cli import OneLineParser, fail
 from hola_ray.env.config import PursuitConfig
+from hola_ray.evaluation.metrics import TEAM
 from hola_ray.evaluation.pools import PoolError, load_pool
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import mean_and_se
@@ -55,10 +56,10 @@ def measure(
     policy: Policy, config: PursuitConfig, episodes: int, seeds: Sequence[int]
 ) -> dict[str, float]:
     """Three (n_p) copies of `policy`, `episodes` per seed, pooled: success, length and
-    collision with their standard errors."""
+    collision (every `TEAM` metric) with their standard errors."""
     runs = [rollout(config, [policy] * config.n_pursuers, episodes, seed=s) for s in seeds]
     out: dict[str, float] = {}
-    for name in ("success", "length", "collision"):
+    for name in (m.field for m in TEAM):
         mean, se = mean_and_se(np.concatenate([getattr(r, name) for r in runs]))
         out[name], out[f"{name}_se"] = mean, se
     out["episodes"] = float(len(seeds) * episodes)

@@ -14,6 +14,7 @@ import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.compare import FIELDS
+from hola_ray.evaluation.metrics import zero_shot_values
 from hola_ray.evaluation.rollout import rollout
 
 
@@ -45,13 +46,8 @@ def play(
         teams = draw_teams(rng, episodes, n_p, len(members))
         result = rollout(config, [learner, *members], episodes, assignment=teams, seed=int(s))
         learner_seat = teams == 0  # the learner is candidate 0, in one seat per episode
-        out["success"].append(result.success.astype(np.float64))
-        out["collision"].append(result.collision.astype(np.float64))
-        out["length"].append(result.length.astype(np.float64))
-        out["reward"].append(result.team_return / n_p)
-        out["learner_crash"].append(result.crashed[learner_seat].astype(np.float64))
-        mates = result.crashed[~learner_seat].reshape(episodes, n_p - 1)
-        out["teammate_crash"].append(mates.mean(axis=1))
+        for name, values in zero_shot_values(result, learner_seat, n_p).items():
+            out[name].append(values)
         out["stratum"].append(partner_combinations(teams, len(members)))
         out["eval_seed"].append(np.full(episodes, int(s)))
     return {m: np.concatenate(v) for m, v in out.items()}

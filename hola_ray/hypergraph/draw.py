@@ -18,14 +18,14 @@ import math
 from pathlib import Path
 
 import matplotlib
+import numpy as np
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from hola_ray.hypergraph.hyfog import HyFoG  # noqa: E402
-from hola_ray.hypergraph.phi import phi  # noqa: E402
-from hola_ray.hypergraph.preference import centrality, preference_hypergraph  # noqa: E402
+from hola_ray.hypergraph.hyfog import HyFoG
+from hola_ray.hypergraph.phi import phi
+from hola_ray.hypergraph.preference import centrality, preference_hypergraph
 
 
 def find_hyfog(path: Path) -> Path:
@@ -73,10 +73,11 @@ def draw(g: HyFoG, out: Path, kind: str = "myerson", title: str = "") -> None:
     xy = {v: np.array([math.cos(a), math.sin(a)]) for v, a in angle.items()}
     eta = centrality(g)
     probability = phi(g, kind)
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 5.5), dpi=100)
+    fig = Figure(figsize=(12, 5.5), dpi=100)  # no pyplot, no global backend switched
+    left, right = fig.subplots(1, 2)
     edges = g.edges
     order, matrix = pair_weights(g)
-    cmap = plt.get_cmap("viridis").with_extremes(bad="0.92")
+    cmap = matplotlib.colormaps["viridis"].with_extremes(bad="0.92")
     image = left.imshow(np.ma.masked_invalid(matrix), cmap=cmap)
     left.set_xticks(range(n), [str(v) for v in order], fontsize=8)
     left.set_yticks(range(n), [str(v) for v in order], fontsize=8)
@@ -96,7 +97,7 @@ def draw(g: HyFoG, out: Path, kind: str = "myerson", title: str = "") -> None:
                         color="white" if matrix[i, j] < middle else "black",
                     )
     fig.colorbar(image, ax=left, fraction=0.046, label="mean hyperedge weight (team return)")
-    colours = plt.get_cmap("plasma")
+    colours = matplotlib.colormaps["plasma"]
     top = max(probability.values(), default=1.0)
     best = preference_hypergraph(g)
     for source, e in best.items():
@@ -139,12 +140,11 @@ def draw(g: HyFoG, out: Path, kind: str = "myerson", title: str = "") -> None:
     right.set_ylim(-1.6, 1.6)
     right.set_aspect("equal")
     right.axis("off")
-    mappable = plt.cm.ScalarMappable(cmap=colours, norm=plt.Normalize(0, top))
+    mappable = ScalarMappable(cmap=colours, norm=Normalize(0, top))
     fig.colorbar(mappable, ax=right, fraction=0.04, label=f"φ ({kind})")
     if title:
         fig.suptitle(title, fontsize=9)
     fig.savefig(out)
-    plt.close(fig)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -1,568 +1,73 @@
-"""The one trainer (SPEC §5): generations of Oracle → judge → coordinator.
+"""HOLA-Drone (paper §IV) and its two controls: the learner trains with partners drawn by
+φ, the shifted inverse of a node value of the HyFoG, and joins the population when its η
+rank is within the top m.
 
-Every method (`hola_ray.methods.config.METHODS`) runs this loop. Generation 0 builds the
-partner population (MEP pre-training, or FCP's self-play checkpoints) and G_0; then each
-generation the Oracle trains the learner with partners drawn as the method says (φ, uniform
-or MEP's rank rule; the coordinator's `phi`), the Grapher weighs the learner's hyperedges
-and the coordinator accepts it into the population or not (best-response methods: never).
-Self-play (`sp`): no population; the Oracle seats the learner in every slot and the
-learner is judged by its own team's rollout. The driver only sequences the phases; the
-population lives in the coordinator actor, the hyperedge evaluations in member actors, the
-PPO in RLlib's env runners and learner. Every method leaves `learner.pt` (the latest
-learner) and `best.pt` with `best.json` (the generation whose learner scored best in its
-judging).
+- `hola`: φ from the Myerson value of the hypergraphic game (SPEC §4);
+- `hola_r`: φ from each member's mean hyperedge reward (HOLA-Drone_R);
+- `uniform`: partners drawn uniformly, the control for what φ adds.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import time
-from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
-import ray
-from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
-from hola_ray import interrupt
-from hola_ray.evaluation.rollout import rollout
-from hola_ray.evaluation.stats import mean_and_se
-from hola_ray.evaluation.teams import play
-from hola_ray.methods.config import RunConfig
-from hola_ray.oracle import LEARNER, Oracle, member_module
-from hola_ray.policies.learned import MLPPolicy
-from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name, run_id
-from hola_ray.population.grapher import evaluate_edges
-from hola_ray.population.lock import RunLock
-from hola_ray.population.member import MemberPool
-from hola_ray.population.rundir import RunDir
-from hola_ray.population.state import EdgeResult, edge_seed
+from hola_ray.hypergraph import phi
+from hola_ray.hypergraph.phi import node_values
+from hola_ray.methods.base import Method, Uniform
+from hola_ray.population.state import Decision, Population
 
-_REPORTED = (
-    ("success", "success"),
-    ("return", "team_return"),
-    ("collision", "collision"),
-    ("length", "length"),
+if TYPE_CHECKING:
+    from hola_ray.methods.config import RunConfig
+
+
+@dataclass(frozen=True)
+class InverseValue:
+    """Rules: φ = the normalised shifted inverse of a node value (`kind`: myerson or
+    mean_reward; `hola_ray.hypergraph.phi`) over the members a partner may be drawn from;
+    a candidate joins when its η rank is within the top m."""
+
+    kind: str
+    shift: float
+
+    def setup(self, population: Population) -> None:
+        pass
+
+    def phi(self, population: Population, exclude_slot: int | None = None) -> dict[int, float]:
+        full = phi(population.member_graph(), self.kind, self.shift)
+        kept = {v: full[v] for v in population.drawable(exclude_slot)}
+        norm = sum(kept.values())
+        return {v: w / norm for v, w in kept.items()}
+
+    def values(self, population: Population) -> dict[int, float | None]:
+        return node_values(population.member_graph(), self.kind)
+
+    def decide(
+        self, population: Population, slot: int | None, rng: np.random.Generator
+    ) -> Decision:
+        return population.decide()
+
+
+class HolaDrone(Method):
+    """An MEP population grown open-endedly; partners drawn by φ of `kind` (or uniformly)."""
+
+    shares_generation_zero: ClassVar[bool] = True
+
+    def __init__(self, name: str, kind: str, description: str):
+        super().__init__(name, description)
+        self.kind = kind
+        """myerson, mean_reward, or uniform"""
+
+    def rules(self, config: RunConfig) -> InverseValue | Uniform:
+        if self.kind == "uniform":
+            return Uniform()
+        return InverseValue(self.kind, config.population.phi_shift)
+
+
+HOLA = HolaDrone("hola", "myerson", "HOLA-Drone: partners drawn by the inverse Myerson value")
+HOLA_R = HolaDrone("hola_r", "mean_reward", "HOLA-Drone_R: partners by the inverse mean reward")
+UNIFORM = HolaDrone(
+    "uniform", "uniform", "HOLA-Drone with uniform partners: the control for what φ adds"
 )
-"""(metric name in metrics.csv, its field in an edge result or a rollout summary)"""
-
-
-class RunError(RuntimeError):
-    """A run cannot start or continue as asked (e.g. a run directory already in use)."""
-
-
-@dataclass
-class Trainer:
-    """Runs one training run (any method) in `run_dir` on the connected Ray cluster."""
-
-    config: RunConfig
-    run_dir: Path
-    progress: bool = True
-    lock: RunLock | None = None
-    """the run directory's lock, when the caller took it already (else `fit` takes it)"""
-    saved: Callable[[int], Any] | None = None
-    """called with g once generation g (and the files at the top) is on disk; and after a
-    resume has written those files again (the experiment mirrors a trial's folder with it)"""
-    adopt_from: tuple[Path, ...] = ()
-    """run directories whose generation 0 a fresh run takes instead of pre-training, when
-    one of them built it with the same `generation_zero_key` (an experiment's methods of
-    one seed that share MEP's population: the same G_0, trained once)"""
-
-    def __post_init__(self) -> None:
-        self.run = RunDir(self.run_dir)
-        self.name = run_id(str(self.run.root))
-        self.pool = MemberPool(self.config.env.to_dict(), run_name=self.name)
-        self.loaded: dict[int, int] = {}  # Oracle partner slot → node whose weights it holds
-        self._validators: list | None = None  # the validation teammates, loaded once
-        self._member_teams: dict[int, dict[str, float]] = {}  # node → its self-play figures
-
-    # ---- entry --------------------------------------------------------------------------
-    def fit(self) -> list[dict[str, Any]]:
-        """Train until `config.generations`; returns the metrics rows written this call.
-        Raises `RunDirLocked` before writing anything when another run holds the folder."""
-        lock = self.lock or RunLock(self.run_dir)
-        owned = not lock.held
-        note = lock.acquire()
-        if note:
-            self._say(note)
-        try:
-            return self._fit()
-        finally:
-            if owned:
-                lock.release()
-
-    def _fit(self) -> list[dict[str, Any]]:
-        self.run.create(self.config.to_yaml())
-        self._adopt()
-        here = ray.get_runtime_context().get_node_id()
-        self.coord = Coordinator.options(
-            name=coordinator_name(str(self.run_dir)),
-            namespace=NAMESPACE,
-            scheduling_strategy=NodeAffinitySchedulingStrategy(node_id=here, soft=False),
-        ).remote(self.config.to_dict(), str(self.run.root.resolve()))
-        rows: list[dict[str, Any]] = []
-        oracle = None
-        self._validation_teammates()  # a missing or refused validation set fails at once
-        try:
-            last = ray.get(self.coord.last_completed.remote())
-            if last is None and self.config.strategy.self_play:
-                last = 0  # no population to pre-train: generation 1 is the first
-            elif last is None:
-                rows.append(self._pretrain())
-                last = 0
-                self._saved(0)
-            else:
-                self._say(f"resuming after generation {last} in {self.run.root}")
-                self._catch_up(last)
-                self._saved(last)
-            if last < self.config.generations:
-                oracle = Oracle(self.config)
-                learner = self.run.load_learner_state(last)
-                if learner is not None:
-                    oracle.set_trained_weights({LEARNER: learner})
-                for g in range(last + 1, self.config.generations + 1):
-                    rows.append(self._generation(g, oracle))
-                    self._saved(g)
-        finally:
-            if oracle is not None:
-                oracle.stop()
-            self.pool.shutdown()
-            ray.get(self.coord.close.remote())
-            ray.kill(self.coord)
-        return rows
-
-    # ---- generation 0 -------------------------------------------------------------------
-    def _adopt(self) -> None:
-        """A fresh run whose generation 0 another run already built (`adopt_from`, the same
-        `generation_zero_key`) takes it instead of pre-training again."""
-        key = self.config.generation_zero_key()
-        if key is None or self.run.last_completed() is not None:
-            return
-        for folder in self.adopt_from:
-            donor = RunDir(folder)
-            marker = donor.generation(0) / KEY_FILE
-            if Path(folder).resolve() == self.run.root.resolve() or not marker.is_file():
-                continue
-            if marker.read_text() != key:
-                continue
-            p = self.config.population
-            self.run.adopt_generation_zero(
-                donor,
-                {
-                    "max_size": p.max_size,
-                    "top_m": p.top_m,
-                    "phi_kind": self.config.phi_kind,
-                    "phi_shift": p.phi_shift,
-                    "joins": self.config.strategy.joins,
-                    "rank_beta": p.rank_beta,
-                },
-            )
-            self._say(f"gen 0: adopted from {donor.root.name} (the same pre-training and G_0)")
-            return
-
-    def _pretrain(self) -> dict[str, Any]:
-        c = self.config
-        self.coord.set_phase.remote("pretrain")
-        start = time.perf_counter()
-        if c.strategy.population == "fcp":
-            states_list, stats, built = self._fcp_population()
-        else:
-            # pbt: its agents start trained jointly with each other, without MEP's bonus
-            pre = c
-            if c.strategy.population == "pbt":
-                pre = dataclasses.replace(c, pretrain=dataclasses.replace(c.pretrain, alpha=0.0))
-            mep = Oracle(pre, mep_members=c.population.initial_size)
-            try:
-                stats = mep.train(
-                    c.pretrain.env_steps, desc="pre-train (MEP)", progress=self.progress
-                )
-                states = mep.weights(mep.members)
-            finally:
-                mep.stop()
-            states_list = [states[m] for m in mep.members]
-            built = f"pre-trained {len(states_list)} members " + (
-                "jointly (PBT's start)" if pre is not c else "with MEP"
-            )
-        exports = [c.export(s) for s in states_list]
-        pretrain_s = time.perf_counter() - start
-        ray.get(self.coord.init_population.remote(exports, states_list))
-
-        self.coord.set_phase.remote("grapher")
-        results, grapher = self._grapher(0)
-        self.coord.set_phase.remote("coordinator")
-        start = time.perf_counter()
-        ray.get(self.coord.record.remote(results))
-        metrics = {
-            "env_steps": 0,
-            **self._population_as_team(0),
-            "pretrain_env_steps": stats.env_steps,
-            "pretrain_s": round(pretrain_s, 2),
-            "pretrain_env_steps_per_s": round(stats.env_steps_per_s, 1),
-            **{f"pretrain_{k}": round(v, 4) for k, v in stats.spread.items()},
-            **_edge_summary("population", results),
-            **grapher,
-            "coordinator_s": round(time.perf_counter() - start, 4),
-        }
-        row = ray.get(self.coord.commit.remote(0, metrics, None, None, stats.iteration_log))
-        key = c.generation_zero_key()
-        if key is not None:  # what another run of the same pre-training may adopt
-            (self.run.generation(0) / KEY_FILE).write_text(key)
-        self._say(
-            f"gen 0: {built} in {pretrain_s:.0f}s; G_0 success {row['population_success']:.0%}, "
-            f"return {row['population_return']:.1f}"
-        )
-        return row
-
-    def _fcp_population(self) -> tuple[list[dict[str, Any]], Any, str]:
-        """FCP's partners: `fcp.agents` self-play agents, each from its own seed, frozen at
-        the start, the middle and the end of its training (3 members per agent)."""
-        c = self.config
-        states: list[dict[str, Any]] = []
-        parts = []
-        for i in range(c.fcp.agents):
-            # FCP's partners, like MEP's, are built in environment steps (`fcp.env_steps`)
-            sp = dataclasses.replace(
-                c,
-                method="sp",
-                seed=fcp_seed(c.seed, i),
-                oracle=dataclasses.replace(c.oracle, budget="env_steps"),
-            )
-            oracle = Oracle(sp)
-            try:
-                states.append(oracle.weights([LEARNER])[LEARNER])
-                half = c.fcp.env_steps // 2
-                for part, budget in (("middle", half), ("end", c.fcp.env_steps - half)):
-                    stats = oracle.train(
-                        budget, desc=f"pre-train (FCP agent {i}, to {part})", progress=self.progress
-                    )
-                    parts.append(stats)
-                    states.append(oracle.weights([LEARNER])[LEARNER])
-            finally:
-                oracle.stop()
-        total = dataclasses.replace(
-            parts[-1],
-            **{k: sum(getattr(p, k) for p in parts) for k in ("env_steps", "wall_s", "sample_s")},
-            learn_s=sum(p.learn_s for p in parts),
-        )
-        return (
-            states,
-            total,
-            f"trained {c.fcp.agents} self-play agent(s) for FCP ({len(states)} checkpoints)",
-        )
-
-    # ---- generations 1.. ----------------------------------------------------------------
-    def _generation(self, g: int, oracle: Oracle) -> dict[str, Any]:
-        c = self.config
-        prev = ray.get(self.coord.view.remote())["last_metrics"]
-        self.coord.set_phase.remote("oracle")
-        start = time.perf_counter()
-        slot = None
-        if c.strategy.population == "pbt":
-            slot = self._seat_pbt_agent(g, oracle)
-        if not c.strategy.self_play:
-            self._seat_partners(g, oracle, exclude_slot=slot)
-        stats = oracle.train(c.oracle.env_steps, desc=f"gen {g} oracle", progress=self.progress)
-        learner_state = oracle.weights([LEARNER])[LEARNER]
-        export = oracle.export_state(learner_state)
-        oracle_s = time.perf_counter() - start
-
-        if c.strategy.self_play:
-            self.coord.set_phase.remote("self-play evaluation")
-            judged, decision = self._self_play_eval(g, export), None
-        else:
-            judged, decision = self._judge_in_population(g, export, learner_state, slot)
-        self.coord.set_phase.remote("validation")
-        judged |= self._validate(export) | self._population_as_team(g)
-        metrics = {
-            "wall_s": round(time.perf_counter() - start, 2),
-            "env_steps": int(prev.get("env_steps", 0)) + stats.env_steps,
-            "learner_samples": int(prev.get("learner_samples", 0)) + stats.learner_samples,
-            "gradient_steps": int(prev.get("gradient_steps", 0)) + stats.gradient_steps,
-            "oracle_s": round(oracle_s, 2),
-            "oracle_env_steps_per_s": round(stats.env_steps_per_s, 1),
-            "oracle_sampled_steps_per_s": round(stats.sampled_steps_per_s, 1),
-            "oracle_sample_s": round(stats.sample_s, 2),
-            "oracle_learn_s": round(stats.learn_s, 2),
-            "oracle_learner_return": stats.module_return.get(LEARNER, float("nan")),
-            **{k: round(v, 4) for k, v in stats.spread.items()},
-            **judged,
-        }
-        row = ray.get(
-            self.coord.commit.remote(g, metrics, learner_state, decision, stats.iteration_log)
-        )
-        # best.pt first: learner.json, written last, says the generation is wholly saved
-        best = self.run.keep_best(g, row, export)
-        self._save_learner(g, export, None if decision is None else decision.to_dict())
-        if decision is None:
-            verdict = (
-                "best so far" if best else f"best stays generation {self.run.best_generation()}"
-            )
-        elif slot is not None:
-            verdict = f"agent {slot} is node {decision.candidate}" + (
-                f"; it exploits node {decision.copied_from} and explores lr and entropy"
-                if decision.copied_from is not None
-                else ""
-            )
-        elif decision.accepted:
-            verdict = f"accepted as node {decision.candidate} (rank {decision.rank}" + (
-                f", replaces {decision.replaced})" if decision.replaced is not None else ")"
-            )
-        elif not c.strategy.joins:
-            verdict = f"population fixed ({c.method}: a best response; η rank {decision.rank})"
-        else:
-            verdict = f"rejected (rank {decision.rank} > top {c.population.top_m})"
-        self._say(
-            f"gen {g}: learner success {row['learner_success']:.0%} ± "
-            f"{row['learner_success_se']:.0%}, collision {row['learner_collision']:.0%}, "
-            f"return {row['learner_return']:.1f}; {verdict}; std {row.get('std_median', 0):.2f}; "
-            f"oracle {oracle_s:.0f}s ({stats.env_steps_per_s:.0f} steps/s)"
-        )
-        return row
-
-    def _save_learner(self, g: int, export: dict[str, Any], decision: dict | None) -> None:
-        """learner.pt and learner.json: generation g's learner, and whether it joined."""
-        accepted = decision is not None and bool(decision["accepted"])
-        self.run.save_learner(export)
-        self.run.save_learner_info(
-            {
-                "generation": g,
-                "method": self.config.method,
-                "in_population": None if decision is None else accepted,
-                "node": decision["candidate"] if accepted else None,
-                "population": "population/members.json" if decision is not None else None,
-            }
-        )
-
-    def _catch_up(self, last: int) -> None:
-        """A run killed after committing generation `last` but before writing the files
-        at the top of its directory: best.pt and best.json from the best of the completed
-        generations, then learner.pt and learner.json (the last written, so a learner.json
-        of generation `last` says all of them are) from that generation's folder."""
-        if last < 1 or not self.run.learner_state(last).is_file():
-            return
-        best = self.run.best_of_completed()
-        if best is not None and (self.run.best_generation() != best or not self.run.best.is_file()):
-            self.run.best_info.unlink(missing_ok=True)
-            state = self.run.load_learner_state(best)
-            self.run.keep_best(
-                best, self.run.read_json(best, "metrics.json"), self.config.export(state)
-            )
-            self._say(f"best.pt written again from generation {best}")
-        if self.run.learner_generation() != last:
-            state = self.run.load_learner_state(last)
-            decision = self.run.read_json(last, "state.json")["decision"]
-            self._save_learner(last, self.config.export(state), decision)
-            self._say(f"learner.pt written again from generation {last}")
-
-    def _seat_pbt_agent(self, g: int, oracle: Oracle) -> int:
-        """PBT: generation g trains agent (g − 1) mod K: its weights go into the learner,
-        which trains with that agent's lr and entropy coefficient and a fresh optimizer."""
-        slots = ray.get(self.coord.slots.remote())
-        slot = (g - 1) % len(slots)
-        node = next(v for v, s in slots.items() if s == slot)
-        state = ray.get(self.coord.member_states.remote([node]))[node]
-        oracle.set_trained_weights({LEARNER: state})
-        hyper = ray.get(self.coord.agent_hyper.remote(slot))
-        oracle.reset_learner(hyper["lr"], hyper["entropy_coef"])
-        return slot
-
-    def _seat_partners(self, g: int, oracle: Oracle, exclude_slot: int | None = None) -> None:
-        """Load the members whose slots changed into the Oracle and push this generation's φ
-        (without the member in `exclude_slot`: PBT's agent in training)."""
-        slots = ray.get(self.coord.slots.remote())
-        changed = {slot: node for node, slot in slots.items() if self.loaded.get(slot) != node}
-        if changed:
-            states = ray.get(self.coord.member_states.remote(list(changed.values())))
-            oracle.set_partners({member_module(s): states[n] for s, n in changed.items()})
-            self.loaded.update(changed)
-        phi = ray.get(self.coord.phi.remote(exclude_slot))
-        oracle.set_phi({member_module(slots[n]): p for n, p in phi.items()}, salt=g)
-
-    def _judge_in_population(self, g: int, export, learner_state, slot: int | None = None):
-        """The Grapher weighs the learner's hyperedges; the coordinator decides (pbt: on
-        the agent of `slot`)."""
-        self.coord.set_phase.remote("grapher")
-        candidate = ray.get(self.coord.propose.remote(export, learner_state))
-        results, grapher = self._grapher(g)
-        self.coord.set_phase.remote("coordinator")
-        start = time.perf_counter()
-        ray.get(self.coord.record.remote(results))
-        decision = ray.get(self.coord.decide.remote(slot, g))
-        if not decision.accepted or decision.copied_from is not None:
-            self.pool.remove(candidate)  # gone, or its weights are another member's now
-        if decision.replaced is not None:
-            self.pool.remove(decision.replaced)
-        judged = {
-            **_edge_summary("learner", results),
-            **grapher,
-            "candidate": candidate,
-            "accepted": int(decision.accepted),
-            "rank": decision.rank,
-            "eta": decision.eta,
-            "replaced": -1 if decision.replaced is None else decision.replaced,
-            "copied_from": -1 if decision.copied_from is None else decision.copied_from,
-            "coordinator_s": round(time.perf_counter() - start, 4),
-        }
-        return judged, decision
-
-    def _self_play_eval(self, g: int, export) -> dict[str, Any]:
-        """Self-play: the exported learner in every slot, `grapher.episodes_per_edge` episodes."""
-        c = self.config
-        start = time.perf_counter()
-        team = [MLPPolicy(c.env, export)] * c.env.n_pursuers
-        episodes = c.grapher.episodes_per_edge
-        result = rollout(c.env, team, episodes, seed=edge_seed(c.seed, g, ()))
-        summary = result.summary()
-        judged = {"learner_episodes": episodes, "eval_s": round(time.perf_counter() - start, 2)}
-        for name, key in _REPORTED:
-            judged[f"learner_{name}"] = round(summary[key], 4)
-            judged[f"learner_{name}_se"] = round(summary[f"{key}_se"], 4)
-        return judged
-
-    def _validate(self, export) -> dict[str, float]:
-        """The learner with the validation teammates (`validation.pool`): in a random seat,
-        its teammates drawn per episode, the same episodes every generation. best.pt is the
-        generation that does best here, for every method."""
-        c = self.config
-        if not c.validation.enabled:
-            return {}
-        start = time.perf_counter()
-        played = play(
-            MLPPolicy(c.env, export),
-            self._validation_teammates(),
-            c.env,
-            c.validation.episodes,
-            [VALIDATION_SEED + c.seed],
-        )
-        out: dict[str, float] = {}
-        for name in ("success", "collision", "learner_crash", "length"):
-            mean, se = mean_and_se(played[name])
-            out[f"val_{name}"], out[f"val_{name}_se"] = round(mean, 4), round(se, 4)
-        out["val_s"] = round(time.perf_counter() - start, 2)
-        return out
-
-    def _validation_teammates(self) -> list:
-        """The validation set's members for this run's scenario (loaded once; refused if
-        it shares a member with an evaluation pool: `hola_ray.evaluation.pools.load_validation`)."""
-        c = self.config
-        if self._validators is None and c.validation.enabled:
-            from hola_ray.evaluation.pools import load_validation
-
-            self._validators = list(load_validation(c.validation.pool, c.env).values())
-        return self._validators or []
-
-    def _population_as_team(self, g: int) -> dict[str, float]:
-        """Can the population pursue? Each member as a team of its own copies (its self-play
-        success, collision and the share of its seats that crashed; measured once per
-        node, the mean and the weakest over members), and teams of distinct members drawn
-        from the population (`population_team_*`)."""
-        c = self.config
-        if c.strategy.self_play:
-            return {}
-        nodes = sorted(ray.get(self.coord.slots.remote()))
-        exports = ray.get(self.coord.exports.remote(nodes))
-        episodes, n_p = c.grapher.episodes_per_edge, c.env.n_pursuers
-        for v in nodes:
-            if v not in self._member_teams:
-                result = rollout(
-                    c.env,
-                    [MLPPolicy(c.env, exports[v])] * n_p,
-                    episodes,
-                    seed=edge_seed(c.seed, 0, (v,) * n_p),
-                )
-                self._member_teams[v] = _team_figures(result)
-        own = [self._member_teams[v] for v in nodes]
-        out = {
-            f"members_{k}": round(float(np.mean([f[k] for f in own])), 4)
-            for k in ("success", "collision", "crash")
-        }
-        out["members_success_min"] = round(min(f["success"] for f in own), 4)
-        rng = np.random.default_rng([c.seed, g, 3])
-        teams = np.stack(
-            [rng.choice(len(nodes), n_p, replace=len(nodes) < n_p) for _ in range(episodes)]
-        )
-        policies = [MLPPolicy(c.env, exports[v]) for v in nodes]
-        mixed = rollout(c.env, policies, episodes, assignment=teams, seed=edge_seed(c.seed, g, ()))
-        out |= {f"population_team_{k}": round(v, 4) for k, v in _team_figures(mixed).items()}
-        return out
-
-    def _grapher(self, g: int) -> tuple[list[EdgeResult], dict[str, float]]:
-        c = self.config
-        edges = ray.get(self.coord.edges_to_evaluate.remote(g))
-        nodes = sorted({v for e in edges for v in e})
-        exports = ray.get(self.coord.exports.remote(nodes))
-        actors = self.pool.ensure(exports)
-        results, stats = evaluate_edges(
-            edges,
-            actors,
-            ray.put(exports),
-            c.grapher.episodes_per_edge,
-            seed_of=lambda e: edge_seed(c.seed, g, e),
-            workers=c.grapher.workers,
-            desc=f"gen {g} grapher",
-            progress=self.progress,
-        )
-        return results, {
-            "grapher_edges": stats.edges,
-            "grapher_s": round(stats.wall_s, 2),
-            "grapher_episodes_per_s": round(stats.episodes_per_s, 1),
-            "grapher_retries": stats.retries,
-        }
-
-    def _saved(self, g: int) -> None:
-        interrupt.check()
-        if self.saved is not None:
-            self.saved(g)
-
-    def _say(self, text: str) -> None:
-        print(text, flush=True)
-
-
-def fcp_seed(run_seed: int, agent: int) -> int:
-    """The seed of FCP's self-play agent `agent`: apart from the run's own and each other's."""
-    return run_seed + 1000 * (agent + 1)
-
-
-KEY_FILE = "generation_zero_key.json"
-"""in a generation-0 folder: the `generation_zero_key` it was built with"""
-
-VALIDATION_SEED = 90_001
-"""Validation episodes' seeds: VALIDATION_SEED + the run's seed, apart from the zero-shot
-evaluation's (0, 1, 2 …) and Table II's"""
-
-
-def _team_figures(result) -> dict[str, float]:
-    """Success, collision and the share of seats that crashed, of a rollout."""
-    return {
-        "success": float(result.success.mean()),
-        "collision": float(result.collision.mean()),
-        "crash": float(result.crashed.mean()),
-    }
-
-
-def _edge_summary(prefix: str, results: list[EdgeResult]) -> dict[str, float]:
-    """Episode-weighted means over hyperedges, with the standard error across hyperedges."""
-    n = np.array([r.episodes for r in results], dtype=np.float64)
-    out: dict[str, float] = {}
-    for name, key in _REPORTED:
-        x = np.array([getattr(r, key) for r in results], dtype=np.float64)
-        mean = float((x * n).sum() / n.sum())
-        se = float(x.std(ddof=1) / np.sqrt(x.size)) if x.size > 1 else 0.0
-        out[f"{prefix}_{name}"] = round(mean, 4)
-        out[f"{prefix}_{name}_se"] = round(se, 4)
-    return out
-
-
-def check_run_dir(run_dir: Path, resume: bool) -> None:
-    """Refuse to start a fresh run over a run directory that has generations."""
-    run = RunDir(run_dir)
-    if resume:
-        if not run.config.is_file():
-            raise RunError(f"--resume {run_dir}: no config.yaml there, not a run directory")
-    elif run.completed():
-        raise RunError(
-            f"{run_dir} already holds generations {run.completed()}; "
-            f"continue it with --resume {run_dir} or pick another --out"
-        )

@@ -2,17 +2,19 @@
 
 One algorithm holds a trained module for the learner and a frozen module per population
 slot. A stateful `PartnerMapping` puts the learner in a random pursuer slot and draws the
-other slots from φ; in self-play (`method: sp`) there are no partners and every slot is
-the learner. Partner weights and φ are pushed straight into every env runner (and
-re-pushed into any env runner RLlib recreates), because weights set on a frozen module
-otherwise reach the env runners only an iteration late. The same class, in MEP mode,
-trains the initial population jointly with the population-entropy bonus.
+other slots from φ; in self-play (`Seating.partners` 0) there are no partners and every
+slot is the learner. The Oracle is the one owner of what its env runners hold: `seat`
+loads the partners whose slots changed and φ, pushed straight into every env runner (and
+re-pushed, by the callback, into any env runner RLlib recreates), because weights set on a
+frozen module otherwise reach the env runners only an iteration late. The same class, in
+MEP mode, trains the initial population jointly with the population-entropy bonus.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+import weakref
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,8 +32,8 @@ from hola_ray.env.config import PursuitConfig
 from hola_ray.env.horizon import horizon_is_truncation
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.evaluation.probe import reference_observations
-from hola_ray.methods.config import RunConfig
 from hola_ray.oracle.batched_runner import BatchedEnvRunner
+from hola_ray.oracle.config import OracleConfig, Seating
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.mep import OracleLearner
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitCatalog, PursuitPPOModule
@@ -47,16 +49,13 @@ def _make_env(env_config: Mapping[str, Any]) -> ParallelPettingZooEnv:
     return ParallelPettingZooEnv(PursuitEnv(PursuitConfig.from_dict(env_config)))
 
 
-register_env(ENV_NAME, _make_env)
-
-
 class _RepushOnRecreate(RLlibCallback):
     """An env runner that RLlib recreated lost φ and the partner weights: push them again.
     And on RLlib's own (PettingZoo) path, an episode cut at the horizon is truncated, not
     terminated (`hola_ray.env.horizon`; the batched runner builds its episodes so)."""
 
     def on_env_runners_recreated(self, *, algorithm, env_runner_group, env_runner_indices, **kw):
-        pushed = getattr(algorithm, "_hola_pushed", None)
+        pushed = _PUSHED.get(id(algorithm))
         if pushed is not None:
             pushed.push(env_runner_group, remote_ids=list(env_runner_indices), local=False)
 
@@ -87,6 +86,10 @@ class _Pushed:
                 runner.sample(num_timesteps=1, force_reset=True)
 
         group.foreach_env_runner(apply, local_env_runner=local, remote_worker_ids=remote_ids)
+
+
+_PUSHED: weakref.WeakValueDictionary[int, _Pushed] = weakref.WeakValueDictionary()
+"""id(algorithm) → what its Oracle last pushed (held by the Oracle; gone with it)"""
 
 
 @dataclass(frozen=True)
@@ -145,42 +148,47 @@ class Oracle:
     `mep_members`, the MEP pre-training of that many population members; or, for a
     self-play method, the learner alone in every slot)."""
 
-    def __init__(self, config: RunConfig, mep_members: int = 0, seed: int | None = None):
-        self.config = config
-        self.mep = mep_members > 0
-        n_p = config.env.n_pursuers
-        if config.strategy.self_play and not self.mep:
+    def __init__(self, env: PursuitConfig, config: OracleConfig, seating: Seating, seed: int):
+        self.env, self.config, self.seating, self.seed = env, config, seating, seed
+        self.mep = seating.mep
+        n_p = env.n_pursuers
+        if seating.self_play:
             self.members: list[str] = []
             self.modules = [LEARNER]
             # φ = the learner with certainty, and no separate learner seat: every slot
             self.mapping = PartnerMapping(n_p, {LEARNER: 1.0}, learner=False)
         else:
-            slots = range(mep_members if self.mep else config.population.max_size)
+            slots = range(seating.mep_members if self.mep else seating.partners)
             self.members = [member_module(s) for s in slots]
             self.modules = self.members if self.mep else [LEARNER, *self.members]
             self.mapping = PartnerMapping(n_p, {m: 1.0 for m in self.members}, learner=not self.mep)
         self.trained = self.members if self.mep else [LEARNER]
-        self.counts_samples = config.oracle.budget == "learner_samples" and not self.mep
+        self.counts_samples = config.budget == "learner_samples" and not self.mep
         """`train(n)` counts the learner's own transitions (not env steps); MEP pre-training
         (every member trained) counts env steps"""
-        self.seats = n_p if config.strategy.self_play and not self.mep else 1
+        self.seats = n_p if seating.self_play else 1
         """seats the trained learner plays per env step: a learner_samples batch of
         `train_batch` transitions spans train_batch / seats env steps"""
-        self.algo: Algorithm = self._algorithm_config(self.trained, seed).build_algo()
         self._pushed = _Pushed(phi=self.mapping.phi, salt=0, weights={})
-        self.algo._hola_pushed = self._pushed  # read by _RepushOnRecreate
+        # registered per Oracle, not at import: Tune's registry lives in the Ray session,
+        # and a process may start more than one (the test modules do)
+        register_env(ENV_NAME, _make_env)
+        self.loaded: dict[int, int] = {}
+        """partner slot → the population node whose weights its module holds"""
+        self.algo: Algorithm = self._algorithm_config(self.trained, seed).build_algo()
+        _PUSHED[id(self.algo)] = self._pushed  # read by _RepushOnRecreate
         # Every 4th of the reference observations (≈ 1,500): the per-iteration spread then
         # costs 4 ms instead of 24 (a tenth of a paper-PPO iteration otherwise)
-        self._reference_obs = reference_observations(config.env)[::4]
+        self._reference_obs = reference_observations(env)[::4]
 
-    def _algorithm_config(self, trainable: Sequence[str], seed: int | None) -> PPOConfig:
-        o, env = self.config.oracle, self.config.env
+    def _algorithm_config(self, trainable: Sequence[str], seed: int) -> PPOConfig:
+        o, env = self.config, self.env
         model = {
             "fcnet_hiddens": list(o.hidden),
             "fcnet_activation": "tanh",
             "vf_share_layers": False,
             "action_dist": o.action_dist,
-            "proximity": self.config.model_features,
+            "proximity": o.model_features(env),
         }
         # Trained modules explore; frozen partners play their mean (oracle/module.py).
         frozen = set(self.modules) - set(trainable)
@@ -194,7 +202,7 @@ class Oracle:
         }
         extra = {"horizon_terminates": o.horizon_terminates}  # read by the env runners
         if self.mep:
-            extra |= {"mep_alpha": self.config.pretrain.alpha, "mep_modules": self.members}
+            extra |= {"mep_alpha": self.seating.mep_alpha, "mep_modules": self.members}
         return (
             PPOConfig()
             .environment(ENV_NAME, env_config=env.to_dict())
@@ -239,7 +247,7 @@ class Oracle:
             )
             .callbacks(_RepushOnRecreate)
             .fault_tolerance(restart_failed_env_runners=True)
-            .debugging(seed=self.config.seed if seed is None else seed, log_level="ERROR")
+            .debugging(seed=seed, log_level="ERROR")
             .reporting(metrics_num_episodes_for_smoothing=20)
         )
 
@@ -267,6 +275,23 @@ class Oracle:
         self.mapping.set_phi(phi, salt)
         self._pushed.phi, self._pushed.salt = self.mapping.phi, salt
         _Pushed(self._pushed.phi, salt, {}).push(self.algo.env_runner_group)
+
+    def seat(
+        self,
+        plan: Mapping[int, tuple[int, float]],
+        states_of: Callable[[list[int]], Mapping[int, ModuleState]],
+        salt: int = 0,
+    ) -> None:
+        """Seat a generation's partners: `plan` is slot → (population node, φ) as the
+        coordinator gives it; the modules whose slot holds another node than before load
+        that node's state (`states_of(nodes)`), then φ is drawn over the slots with φ > 0,
+        `salt` making each generation's draws differ for the same episode ids."""
+        changed = {slot: node for slot, (node, _) in plan.items() if self.loaded.get(slot) != node}
+        if changed:
+            states = states_of(list(changed.values()))
+            self.set_partners({member_module(s): states[n] for s, n in changed.items()})
+            self.loaded.update(changed)
+        self.set_phi({member_module(s): p for s, (_, p) in plan.items() if p > 0}, salt=salt)
 
     # ---- training -----------------------------------------------------------------------
     def train(self, budget: int, desc: str = "oracle", progress: bool = True) -> TrainStats:
@@ -346,7 +371,7 @@ class Oracle:
             "clipped": max(s["clipped"] for s in spreads),
         }
         keys = ["entropy", "vf_loss_unclipped", "vf_explained_var"]
-        if self.config.oracle.kl_coef > 0:
+        if self.config.kl_coef > 0:
             keys.append("mean_kl_loss")
         for key in keys:
             values = [learners[m][key] for m in self.trained if key in learners.get(m, {})]
@@ -394,11 +419,11 @@ class Oracle:
 
     def export_state(self, state: ModuleState) -> dict[str, Any]:
         """The plain-torch export of an RLlib module state of this Oracle's modules."""
-        return self.config.export(state)
+        return self.config.export(state, self.env)
 
     def policy(self, state: ModuleState) -> MLPPolicy:
         """The deterministic policy that everything outside the Oracle plays."""
-        return MLPPolicy(self.config.env, self.export_state(state))
+        return MLPPolicy(self.env, self.export_state(state))
 
     def stop(self) -> None:
         self.algo.stop()

@@ -32,50 +32,45 @@ def make_policy(name: str, config: PursuitConfig) -> Policy:
 
 
 GENERATION_STATE = "learner.rllib.pt"
+"""in a generation folder: the learner's RLlib module state (what a resume loads)"""
+GENERATION_EXPORT = "learner.pt"
+"""in a generation folder: the learner's plain-torch export (what is played)"""
 
 
 def policy_file(path: str | Path) -> Path:
     """A run directory → its final learner (`learner.pt`); a generation folder
-    (`RUN/generations/gen_0012`) → that generation's learner state; a file → itself."""
+    (`RUN/generations/gen_0012`) → that generation's learner export (the same name); a file
+    → itself."""
     path = Path(path)
-    if path.is_dir():
-        state = path / GENERATION_STATE
-        return (
-            state if state.is_file() and not (path / "learner.pt").exists() else path / "learner.pt"
-        )
-    return path
+    return path / GENERATION_EXPORT if path.is_dir() else path
 
 
 def load_export(path: str | Path) -> dict:
-    """The plain-torch export of a run directory's learner, of a generation's learner (made
-    from its RLlib state with the run's config.yaml) or of an export file."""
+    """The plain-torch export of a run directory's learner, of a generation's learner or of
+    an export file."""
     import torch
 
     path = Path(path)
     file = policy_file(path)
     if not file.is_file():
+        older = (path / GENERATION_STATE).is_file()
         raise ValueError(
-            f"{path}: neither a run directory with learner.pt, a generation folder with "
-            f"{GENERATION_STATE}, nor a policy file"
+            f"{path}: a generation folder written before generations kept their export "
+            f"({GENERATION_EXPORT}); play the run's learner.pt or best.pt instead"
+            if older
+            else f"{path}: neither a run directory with learner.pt, a generation folder "
+            f"with {GENERATION_EXPORT}, nor a policy file"
         )
-    if file.name != GENERATION_STATE:
-        try:
-            export = torch.load(file, map_location="cpu", weights_only=True)
-        except Exception as err:  # noqa: BLE001 - torch raises many kinds for a bad file
-            first = str(err).strip().splitlines()[0] if str(err).strip() else ""
-            raise ValueError(
-                f"{file}: not a torch export ({type(err).__name__}: {first[:120]})"
-            ) from err
-        if not isinstance(export, dict):
-            raise ValueError(f"{file}: not a policy export (a {type(export).__name__})")
-        return export
-    from hola_ray.methods.config import RunConfig
-
-    run_config = path.parent.parent / "config.yaml"
-    if not run_config.is_file():
-        raise ValueError(f"{path}: a generation folder, but {run_config} is missing")
-    state = torch.load(file, map_location="cpu", weights_only=False)  # the run's own file
-    return RunConfig.from_yaml(run_config).export(state)
+    try:
+        export = torch.load(file, map_location="cpu", weights_only=True)
+    except Exception as err:  # noqa: BLE001 - torch raises many kinds for a bad file
+        first = str(err).strip().splitlines()[0] if str(err).strip() else ""
+        raise ValueError(
+            f"{file}: not a torch export ({type(err).__name__}: {first[:120]})"
+        ) from err
+    if not isinstance(export, dict):
+        raise ValueError(f"{file}: not a policy export (a {type(export).__name__})")
+    return export
 
 
 def trained_scenario(path: str | Path) -> dict | None:
@@ -97,7 +92,7 @@ def load_policy(path: str | Path, config: PursuitConfig, name: str | None = None
 
     path = Path(path)
     export = load_export(path)
-    if name is None and (path / GENERATION_STATE).is_file() and path.parent.name == "generations":
+    if name is None and path.is_dir() and path.parent.name == "generations":
         name = f"{path.parent.parent.name}-{path.name}"  # run-gen_0012
     name = name or (path.name if path.is_dir() else path.stem)
     if export.get("format") == D3QN_FORMAT:

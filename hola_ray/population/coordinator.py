@@ -1,10 +1,10 @@
 """The coordinator: a named Ray actor that owns the HyFoG and the population.
 
-It computes η and φ with `hola_ray.hypergraph` (through `Population`), accepts or
-rejects each generation's candidate, persists the run after every generation, and exports
-generation, learner success and φ entropy with `ray.util.metrics` (Ray dashboard /
-Prometheus). All decisions live in the pure `Population`; this actor passes calls through
-and does the I/O.
+It holds the `Population`, asks the method's `Rules` for φ and for the verdict on each
+generation's candidate, persists the run after every generation, and exports generation,
+learner success and φ entropy with `ray.util.metrics` (Ray dashboard / Prometheus). The
+decisions live in the pure `Population` and `Rules`; this actor passes calls through and
+does the I/O.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 import ray
 
-from hola_ray.methods.config import RunConfig
+from hola_ray.population.config import PopulationConfig
+from hola_ray.population.rules import Rules
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import Decision, EdgeResult, Population
 
@@ -50,25 +51,26 @@ def phi_entropy(phi: Mapping[Any, float]) -> float:
 class Coordinator:
     """Owns `Population` and the run directory; one per run, named `coordinator:<run>`."""
 
-    def __init__(self, config: Mapping[str, Any], run_dir: str):
+    def __init__(  # noqa: PLR0913
+        self,
+        run_dir: str,
+        rules: Rules,
+        population: PopulationConfig,
+        l: int,  # noqa: E741 - the paper's l
+        seed: int,
+        edges_per_learner: int = 0,
+        method: str = "",
+    ):
         from ray.util.metrics import Gauge
         from tensorboardX import SummaryWriter
 
-        self.config = RunConfig.from_dict(config)
+        self.rules, self.seed, self.method = rules, seed, method
+        self.edges_per_learner = edges_per_learner
         self.run = RunDir(run_dir)
         self.run.clean_partial()
         self.generation = self.run.last_completed()
         if self.generation is None:
-            p = self.config.population
-            self.population = Population(
-                self.config.l,
-                p.max_size,
-                p.top_m,
-                self.config.phi_kind,
-                p.phi_shift,
-                joins=self.config.strategy.joins,
-                rank_beta=p.rank_beta,
-            )
+            self.population = Population(l, population.max_size, population.top_m)
             self.last_metrics: dict[str, Any] = {}
         else:
             state = self.run.read_json(self.generation, "state.json")
@@ -97,15 +99,11 @@ class Coordinator:
     def init_population(
         self, exports: Sequence[Mapping[str, Any]], states: Sequence[Mapping[str, Any]]
     ) -> list[int]:
-        """Seat the MEP-pretrained members (generation 0)."""
+        """Seat the initial members (generation 0)."""
         nodes = self.population.add_initial(len(exports))
         for node, export, state in zip(nodes, exports, states, strict=True):
             self._pending_exports[node] = (dict(export), dict(state))
-        if self.config.strategy.population == "pbt":
-            o = self.config.oracle
-            for node in nodes:
-                slot = self.population.slots[node]
-                self.population.agent_hyper[slot] = {"lr": o.lr, "entropy_coef": o.entropy_coef}
+        self.rules.setup(self.population)
         return nodes
 
     def propose(self, export: Mapping[str, Any], state: Mapping[str, Any]) -> int:
@@ -118,8 +116,8 @@ class Coordinator:
         """G_0's hyperedges at generation 0; the candidate's sampled ones after."""
         if generation == 0:
             return self.population.initial_edges()
-        rng = np.random.default_rng([self.config.seed, generation, 1])
-        return self.population.candidate_edges(self.config.grapher.edges_per_learner, rng)
+        rng = np.random.default_rng([self.seed, generation, 1])
+        return self.population.candidate_edges(self.edges_per_learner, rng)
 
     def exports(self, nodes: Sequence[int]) -> dict[int, dict[str, Any]]:
         """Plain-torch exports of nodes (pending ones from memory, members from disk)."""
@@ -138,25 +136,23 @@ class Coordinator:
         self._edges = list(results)
 
     def decide(self, slot: int | None = None, generation: int = 0) -> Decision:
-        """The coordinator's verdict on the candidate (pbt: on the agent of `slot`)."""
-        if self.config.strategy.population == "pbt":
-            rng = np.random.default_rng([self.config.seed, generation, 2])
-            c = self.config.pbt
-            decision = self.population.pbt_step(slot, rng, c.quantile, c.perturb)
-            if decision.copied_from is not None:  # exploit: the slot takes those weights
-                source = decision.copied_from
-                export = self._weights([source], 0, self.run.load_member_export)[source]
-                state = self._weights([source], 1, self.run.load_member_state)[source]
-                self._pending_exports[decision.candidate] = (dict(export), dict(state))
-            return decision
-        decision = self.population.decide()
-        if not decision.accepted:
+        """The method's verdict on the candidate (`slot`: the agent it was trained from). A
+        candidate that copied a member's weights (PBT's exploit) takes that member's files;
+        one turned away leaves nothing behind."""
+        rng = np.random.default_rng([self.seed, generation, 2])
+        decision = self.rules.decide(self.population, slot, rng)
+        source = decision.copied_from
+        if source is not None:
+            export = self._weights([source], 0, self.run.load_member_export)[source]
+            state = self._weights([source], 1, self.run.load_member_state)[source]
+            self._pending_exports[decision.candidate] = (dict(export), dict(state))
+        elif not decision.accepted:
             self._pending_exports.pop(decision.candidate, None)
         return decision
 
     def agent_hyper(self, slot: int) -> dict[str, float]:
         """pbt: the PPO hyperparameters the agent of `slot` trains with."""
-        return dict(self.population.agent_hyper[slot])
+        return dict(self.population.extra["agent_hyper"][str(slot)])
 
     def commit(
         self,
@@ -165,6 +161,7 @@ class Coordinator:
         learner_state: Mapping[str, Any] | None,
         decision: Decision | None = None,
         iterations: Sequence[Mapping[str, float]] = (),
+        learner_export: Mapping[str, Any] | None = None,
     ) -> dict[str, Any]:
         """Persist generation `generation` (its metrics and the Oracle's per-iteration log)
         and publish its metrics; returns the metrics row."""
@@ -173,7 +170,7 @@ class Coordinator:
             if node in self.population.slots:
                 self.run.save_member(node, export, state)
         self._pending_exports.clear()
-        phi = self.population.phi()
+        phi = self.rules.phi(self.population)
         eta = self.population.eta()
         row = dict(metrics)
         row.update(
@@ -195,7 +192,7 @@ class Coordinator:
         row["persist_s"] = round(time.perf_counter() - start, 4)
         files["metrics.json"] = row
         files["iterations.json"] = [dict(r) for r in iterations]
-        self.run.write_generation(generation, files, learner_state)
+        self.run.write_generation(generation, files, learner_state, learner_export)
         if self.population.members:
             self.run.write_population(
                 {
@@ -236,17 +233,21 @@ class Coordinator:
     def slots(self) -> dict[int, int]:
         return dict(self.population.slots)
 
-    def phi(self, exclude_slot: int | None = None) -> dict[int, float]:
-        return self.population.phi(exclude_slot)
+    def plan(self, exclude_slot: int | None = None) -> dict[int, tuple[int, float]]:
+        """What the Oracle's partner slots hold this generation: slot → (member node, φ), in
+        the members' order; φ 0 for the member in `exclude_slot` (PBT's agent in training)."""
+        phi = self.rules.phi(self.population, exclude_slot)
+        return {self.population.slots[v]: (v, phi.get(v, 0.0)) for v in self.population.members}
 
     def view(self) -> dict[str, Any]:
         """The live status: generation, phase, members with slot, η, φ, value; metrics."""
-        phi, eta, values = self.population.phi(), self.population.eta(), self.population.values()
+        phi, eta = self.rules.phi(self.population), self.population.eta()
+        values = self.rules.values(self.population)
         return {
             "run_dir": str(self.run.root),
             "generation": self.generation,
             "phase": self.phase,
-            "method": self.config.method,
+            "method": self.method,
             "members": [
                 {
                     "node": v,

@@ -26,6 +26,7 @@ def evaluate_team(
     in does not matter. Returns the hyperedge's measured weight.
     """
     from hola_ray.env.config import PursuitConfig
+    from hola_ray.evaluation.metrics import team_figures
     from hola_ray.evaluation.rollout import rollout
     from hola_ray.policies.learned import MLPPolicy
 
@@ -37,14 +38,7 @@ def evaluate_team(
     rng = np.random.default_rng(seed)
     assignment = np.stack([rng.permutation(len(team)) for _ in range(episodes)])
     result = rollout(config, policies, episodes, assignment=assignment, seed=seed)
-    return EdgeResult(
-        nodes=tuple(int(v) for v in team),
-        team_return=float(result.team_return.mean()),
-        success=float(result.success.mean()),
-        collision=float(result.collision.mean()),
-        length=float(result.length.mean()),
-        episodes=episodes,
-    )
+    return EdgeResult(nodes=tuple(int(v) for v in team), episodes=episodes, **team_figures(result))
 
 
 @ray.remote(max_restarts=1, max_task_retries=1)

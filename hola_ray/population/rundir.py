@@ -41,7 +41,7 @@ from typing import Any
 
 import torch
 
-from hola_ray.policies.registry import GENERATION_STATE
+from hola_ray.policies.registry import GENERATION_EXPORT, GENERATION_STATE
 
 GEN_PREFIX = "gen_"
 
@@ -209,8 +209,10 @@ class RunDir:
         g: int,
         files: Mapping[str, Any],
         learner_state: Mapping[str, Any] | None,
+        learner_export: Mapping[str, Any] | None = None,
     ) -> Path:
-        """Write generation g's folder atomically: JSON files from `files`, the learner."""
+        """Write generation g's folder atomically: JSON files from `files`, the learner's
+        RLlib state and its plain-torch export (which `load_policy` plays)."""
         final = self.generation(g)
         if final.exists():
             raise FileExistsError(f"generation {g} is already complete in {final}")
@@ -221,16 +223,17 @@ class RunDir:
             (tmp / name).write_text(json.dumps(payload, indent=1))
         if learner_state is not None:
             torch.save(dict(learner_state), tmp / GENERATION_STATE)
+        if learner_export is not None:
+            torch.save(dict(learner_export), tmp / GENERATION_EXPORT)
         _fsync_dir(tmp)
         os.rename(tmp, final)
         _fsync_dir(self.generations)
         return final
 
-    def adopt_generation_zero(self, donor: RunDir, population: Mapping[str, Any]) -> None:
+    def adopt_generation_zero(self, donor: RunDir) -> None:
         """Make `donor`'s generation 0 (its pre-trained members and G_0) this run's own:
         the members' files, then the generation folder (renamed into place, so it arrives
-        whole), its state's population settings replaced by `population` (this run's
-        method: φ kind, acceptance, sizes)."""
+        whole). How partners are drawn and who joins are the method's, not the folder's."""
         state = donor.read_json(0, "state.json")
         nodes = [int(v) for v in state["population"]["slots"]]
         self.members.mkdir(parents=True, exist_ok=True)
@@ -240,8 +243,6 @@ class RunDir:
         tmp = self.generations / f".tmp_{GEN_PREFIX}0000_{os.getpid()}"
         shutil.rmtree(tmp, ignore_errors=True)
         shutil.copytree(donor.generation(0), tmp)
-        state["population"] |= dict(population)
-        (tmp / "state.json").write_text(json.dumps(state, indent=1))
         metrics = json.loads((tmp / "metrics.json").read_text())
         metrics["adopted_from"] = donor.root.name
         (tmp / "metrics.json").write_text(json.dumps(metrics, indent=1))

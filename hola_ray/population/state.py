@@ -5,10 +5,9 @@ generation's learner candidate. Each member sits in a population slot (0..max_si
 which is the Oracle's frozen partner module `member_<slot>`; a replaced member's slot
 goes to the newcomer. The HyFoG has room for the population plus the candidate.
 
-How the Oracle draws partners (`phi_kind`, the method's): the shifted inverse of a node
-value (myerson, mean_reward; `hola_ray.hypergraph.phi`), uniform, or MEP's rank rule over
-the learner's returns with each member (rank). A population that does not `join` stays
-fixed: every candidate is measured and then turned away (best-response methods).
+How partners are drawn from the members and whether a candidate joins is the method's
+(`hola_ray.population.rules.Rules`, implemented in `hola_ray.methods`): this class holds
+only what every method shares.
 """
 
 from __future__ import annotations
@@ -20,8 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from hola_ray.hypergraph import HyFoG, centrality, lowest_centrality, phi, rank_of
-from hola_ray.hypergraph.phi import node_values
+from hola_ray.hypergraph import HyFoG, centrality, lowest_centrality, rank_of
 
 
 @dataclass(frozen=True)
@@ -58,27 +56,15 @@ class Decision:
 
 
 class Population:
-    """Members, their slots, the HyFoG over them, and the φ/η views of it."""
+    """Members, their slots and the HyFoG over them."""
 
-    def __init__(  # noqa: PLR0913
-        self,
-        l: int,  # noqa: E741
-        max_size: int,
-        top_m: int,
-        phi_kind: str,
-        phi_shift: float,
-        joins: bool = True,
-        rank_beta: float = 3.0,
-    ):
+    def __init__(self, l: int, max_size: int, top_m: int):  # noqa: E741 - the paper's l
         self.l, self.max_size, self.top_m = l, max_size, top_m
-        self.phi_kind, self.phi_shift = phi_kind, phi_shift
-        self.joins, self.rank_beta = joins, rank_beta
         self.learner_returns: dict[int, float] = {}
         """member → mean team return of the latest candidate's hyperedges that hold it"""
-        self.agent_scores: dict[int, float] = {}
-        """pbt: slot → mean team return of its agent's hyperedges after its last training"""
-        self.agent_hyper: dict[int, dict[str, float]] = {}
-        """pbt: slot → its agent's PPO hyperparameters (lr, entropy_coef)"""
+        self.extra: dict[str, Any] = {}
+        """what a method keeps between generations (JSON-safe; PBT: its agents' scores
+        and hyperparameters)"""
         self.hyfog = HyFoG(l=l, max_size=max_size + 1)
         self.slots: dict[int, int] = {}  # member node → population slot
         self.next_node = 0
@@ -140,16 +126,17 @@ class Population:
                 if returns:
                     self.learner_returns[member] = float(np.mean(returns))
 
-    def decide(self) -> Decision:
-        """Accept the candidate if its η rank is within the top m; seat it, replacing the
-        lowest-η member when full; otherwise remove it with its hyperedges."""
+    def decide(self, admit: bool = True) -> Decision:
+        """Accept the candidate if `admit` and its η rank is within the top m; seat it,
+        replacing the lowest-η member when full; otherwise remove it with its hyperedges
+        (a best-response method never admits: the candidate is measured and turned away)."""
         node = self.candidate
         if node is None:
             raise ValueError("no candidate to decide on")
         rank = rank_of(self.hyfog, node)
         eta = centrality(self.hyfog)[node]
         replaced = slot = None
-        accepted = self.joins and rank <= self.top_m
+        accepted = admit and rank <= self.top_m
         if accepted:
             if len(self.slots) >= self.max_size:
                 replaced = lowest_centrality(self.hyfog, exclude=node)
@@ -164,47 +151,6 @@ class Population:
         self.candidate = None
         return Decision(node, accepted, rank, eta, replaced, slot)
 
-    def pbt_step(
-        self,
-        slot: int,
-        rng: np.random.Generator,
-        quantile: float = 0.25,
-        perturb: Sequence[float] = (0.8, 1.2),
-    ) -> Decision:
-        """PBT (Jaderberg 2017, as Carroll 2019 use it): the candidate, the agent of `slot`
-        after its training, replaces its parent there; its score is the mean return of its
-        hyperedges. Once every agent has a score, an agent in the bottom `quantile`
-        exploits (takes the weights and score of an agent drawn from the top `quantile`,
-        `copied_from`) and explores (its lr and entropy coefficient are that agent's times
-        a factor drawn from `perturb`); a copied candidate's hyperedges are dropped, as they
-        measured the weights it no longer has."""
-        node = self.candidate
-        if node is None:
-            raise ValueError("no candidate to decide on")
-        parent = next(v for v, s in self.slots.items() if s == slot)
-        edges = [w for nodes, w in self.hyfog.weights() if node in nodes]
-        rank = rank_of(self.hyfog, node)
-        eta = centrality(self.hyfog)[node]
-        self.slots.pop(parent)
-        self.hyfog.remove_node(parent)
-        self.slots[node] = slot
-        self.agent_scores[slot] = float(np.mean(edges)) if edges else float("-inf")
-        copied = None
-        if len(self.agent_scores) == len(self.slots):
-            k = max(1, int(len(self.slots) * quantile))
-            order = sorted(self.agent_scores, key=lambda s: self.agent_scores[s])
-            if slot in order[:k] and slot not in order[-k:]:
-                source = int(rng.choice(order[-k:]))
-                copied = next(v for v, s in self.slots.items() if s == source)
-                self.agent_scores[slot] = self.agent_scores[source]
-                self.agent_hyper[slot] = {
-                    h: v * float(rng.choice(perturb)) for h, v in self.agent_hyper[source].items()
-                }
-                self.hyfog.remove_node(node)
-                self.hyfog.add_node(node)
-        self.candidate = None
-        return Decision(node, True, rank, eta, parent, slot, copied)
-
     # ---- views --------------------------------------------------------------------------
     def member_graph(self) -> HyFoG:
         """The HyFoG restricted to members (the candidate and its hyperedges left out)."""
@@ -214,32 +160,17 @@ class Population:
         g.remove_node(self.candidate)
         return g
 
-    def phi(self, exclude_slot: int | None = None) -> dict[int, float]:
-        """Partner distribution over members (see the module doc); `exclude_slot`: every
-        member but that slot's (PBT: an agent trains with the others)."""
-        members = [v for v in self.members if self.slots[v] != exclude_slot]
-        if self.phi_kind == "uniform":
-            return {v: 1.0 / len(members) for v in members}
-        if self.phi_kind == "rank":
-            return rank_priorities(
-                {v: self.learner_returns.get(v) for v in members}, self.rank_beta
-            )
-        full = phi(self.member_graph(), self.phi_kind, self.phi_shift)
-        kept = {v: full[v] for v in members}
-        norm = sum(kept.values())
-        return {v: w / norm for v, w in kept.items()}
+    def drawable(self, exclude_slot: int | None = None) -> list[int]:
+        """Members a partner may be drawn from: every one but the member in `exclude_slot`
+        (PBT: an agent trains with the others)."""
+        return [v for v in self.members if self.slots[v] != exclude_slot]
+
+    def slot_member(self, slot: int) -> int:
+        """The member sitting in `slot`."""
+        return next(v for v, s in self.slots.items() if s == slot)
 
     def eta(self) -> dict[int, float]:
         return centrality(self.member_graph())
-
-    def values(self) -> dict[int, float | None]:
-        """The node values φ is drawn by: the Myerson value or mean hyperedge reward, the
-        learner's return with each member (rank), none (uniform)."""
-        if self.phi_kind == "uniform":
-            return dict.fromkeys(self.members)
-        if self.phi_kind == "rank":
-            return {v: self.learner_returns.get(v) for v in self.members}
-        return node_values(self.member_graph(), self.phi_kind)
 
     # ---- persistence --------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -249,13 +180,8 @@ class Population:
             "l": self.l,
             "max_size": self.max_size,
             "top_m": self.top_m,
-            "phi_kind": self.phi_kind,
-            "phi_shift": self.phi_shift,
-            "joins": self.joins,
-            "rank_beta": self.rank_beta,
             "learner_returns": {str(k): v for k, v in self.learner_returns.items()},
-            "agent_scores": {str(k): v for k, v in self.agent_scores.items()},
-            "agent_hyper": {str(k): v for k, v in self.agent_hyper.items()},
+            "extra": self.extra,
             "next_node": self.next_node,
             "slots": {str(k): v for k, v in self.slots.items()},
             "hyfog": self.hyfog.to_dict(),
@@ -263,47 +189,16 @@ class Population:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Population:
-        p = cls(
-            data["l"],
-            data["max_size"],
-            data["top_m"],
-            data["phi_kind"],
-            data["phi_shift"],
-            joins=data.get("joins", True),
-            rank_beta=data.get("rank_beta", 3.0),
-        )
+        p = cls(data["l"], data["max_size"], data["top_m"])
         p.learner_returns = {int(k): v for k, v in data.get("learner_returns", {}).items()}
-        p.agent_scores = {int(k): v for k, v in data.get("agent_scores", {}).items()}
-        p.agent_hyper = {int(k): dict(v) for k, v in data.get("agent_hyper", {}).items()}
+        p.extra = dict(data.get("extra", {}))
+        for key in ("agent_scores", "agent_hyper"):  # a run saved before `extra` (PBT's)
+            if data.get(key):
+                p.extra[key] = data[key]
         p.hyfog = HyFoG.from_dict(data["hyfog"])
         p.slots = {int(k): int(v) for k, v in data["slots"].items()}
         p.next_node = int(data["next_node"])
         return p
-
-
-def rank_priorities(returns: dict[int, float | None], beta: float) -> dict[int, float]:
-    """MEP's prioritised sampling (Zhao et al. 2023), p ∝ rank(1/R)^β: the members ranked
-    by the learner's return R with them, rank 1 for the highest, n for the lowest (the
-    order of 1/R when returns are positive, and defined for any sign); tied returns share
-    their mean rank; a member without a return yet ranks n. No returns at all: uniform."""
-    members = list(returns)
-    if not members:
-        return {}
-    known = {v: r for v, r in returns.items() if r is not None}
-    if not known:
-        return {v: 1.0 / len(members) for v in members}
-    low = min(known.values())
-    # unmeasured members tie with (just below) the lowest: they rank last
-    x = np.array([known.get(v, low - 1.0) for v in members], dtype=np.float64)
-    order = np.argsort(-x, kind="stable")
-    ranks = np.empty(len(x))
-    ranks[order] = np.arange(1, len(x) + 1)
-    for value in np.unique(x):  # ties share their mean rank
-        tied = x == value
-        ranks[tied] = ranks[tied].mean()
-    weights = ranks**beta
-    weights /= weights.sum()
-    return dict(zip(members, weights.tolist(), strict=True))
 
 
 def edge_seed(run_seed: int, generation: int, nodes: Sequence[int]) -> int:

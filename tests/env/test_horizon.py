@@ -62,13 +62,13 @@ def test_an_episode_that_ended_before_the_horizon_is_left_terminated():
 
 
 def test_the_dqn_and_the_pettingzoo_path_apply_it():
-    from hola_ray.oracle.trainer import _RepushOnRecreate
-    from hola_ray.policies.d3qn_train import (
+    from hola_ray.evaluation.d3qn_train import (
         D3QNRun,
         D3QNSettings,
         HorizonTruncates,
         algorithm_config,
     )
+    from hola_ray.oracle.trainer import _RepushOnRecreate
 
     run = D3QNRun(seed=0, env=PursuitConfig(n_evaders=1), d3qn=D3QNSettings())
     assert algorithm_config(run).callbacks_class is HorizonTruncates

@@ -5,18 +5,23 @@ calls; the CLI around it is tested in tests/test_run.py)."""
 
 from __future__ import annotations
 
+import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 import yaml
 
 from hola_ray import status
-from hola_ray.env.config import PursuitConfig
+from hola_ray.env.config import ConfigError, PursuitConfig, require
 from hola_ray.evaluation.rollout import rollout
+from hola_ray.methods.base import Method
 from hola_ray.methods.config import RunConfig
-from hola_ray.methods.hola import KEY_FILE, Trainer
+from hola_ray.methods.registry import register, unregister
+from hola_ray.methods.trainer import KEY_FILE, Trainer
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.population.rundir import RunDir
+from hola_ray.population.state import Decision, Population
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / "configs" / "smoke.yaml"
@@ -83,7 +88,7 @@ def test_best_response_methods_keep_their_population_fixed(tmp_path, capsys, met
         assert "trained 1 self-play agent(s) for FCP (3 checkpoints)" in said
         assert all(v == pytest.approx(1 / 3) for v in phi.values())
     else:
-        from hola_ray.population.state import rank_priorities
+        from hola_ray.methods.mep import rank_priorities
 
         returns = {int(k): v for k, v in states[1]["population"]["learner_returns"].items()}
         assert set(returns) == set(range(size))  # every member met the learner
@@ -109,8 +114,8 @@ def test_pbt_trains_its_agents_in_turn_and_exploits_the_best(tmp_path, capsys):
     r = RunDir(out)
     saved = r.generation(2) / "state.json"
     state = json.loads(saved.read_text())
-    assert sorted(state["population"]["agent_scores"]) == ["0", "1"]  # agent 2 not yet
-    state["population"]["agent_scores"] = {"0": 1e6, "1": 2e6}
+    assert sorted(state["population"]["extra"]["agent_scores"]) == ["0", "1"]  # 2 not yet
+    state["population"]["extra"]["agent_scores"] = {"0": 1e6, "1": 2e6}
     saved.write_text(json.dumps(state))
 
     said = train(smoke | patch | {"generations": 3}, out, capsys)
@@ -122,9 +127,9 @@ def test_pbt_trains_its_agents_in_turn_and_exploits_the_best(tmp_path, capsys):
     source = last["decision"]["copied_from"]
     assert source is not None and slots[source] == 1  # exploits the top agent
     assert f"it exploits node {source}" in said
-    scores = {int(k): v for k, v in last["population"]["agent_scores"].items()}
+    scores = {int(k): v for k, v in last["population"]["extra"]["agent_scores"].items()}
     assert scores[2] == scores[1] == 2e6  # and takes its score
-    hyper = {int(k): v for k, v in last["population"]["agent_hyper"].items()}
+    hyper = {int(k): v for k, v in last["population"]["extra"]["agent_hyper"].items()}
     for h in ("lr", "entropy_coef"):
         assert hyper[2][h] == pytest.approx(0.5 * hyper[1][h])  # explores: × perturb
     copied = torch.load(r.member_export(last["decision"]["candidate"]), weights_only=False)
@@ -136,7 +141,8 @@ def test_pbt_trains_its_agents_in_turn_and_exploits_the_best(tmp_path, capsys):
 def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(tmp_path, capsys):
     """hola and uniform of one seed build the same G_0 (MEP's population): uniform taking
     hola's generation 0 holds the same members and hyperedges as uniform building its own,
-    with its own φ kind; a run whose pre-training differs takes nothing."""
+    and draws them by its own rules (the method's, not the folder's); a run whose
+    pre-training differs takes nothing."""
 
     smoke = yaml.safe_load(SMOKE.read_text()) | {"generations": 0}
     donor, own, adopted = tmp_path / "hola", tmp_path / "uniform-own", tmp_path / "uniform"
@@ -152,7 +158,6 @@ def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(tm
     assert "gen 0: adopted from hola" in capsys.readouterr().out
     a, b = RunDir(adopted), RunDir(own)
     state = a.read_json(0, "state.json")["population"]
-    assert state["phi_kind"] == "uniform"
     assert state["hyfog"] == b.read_json(0, "state.json")["population"]["hyfog"]
     for v in map(int, state["slots"]):
         assert a.member_export(v).read_bytes() == b.member_export(v).read_bytes()
@@ -164,3 +169,67 @@ def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(tm
     assert marker.read_text() == key
     other = smoke | {"method": "uniform", "pretrain": {"env_steps": 3000}}
     assert RunConfig.from_dict(other).generation_zero_key() != key
+
+
+# ---- a new method: one class (here, in this file) and one registry line --------------------
+@dataclass(frozen=True)
+class FavouriteConfig:
+    """The toy method's own config section."""
+
+    slot: int = 0
+
+    def validate(self) -> None:
+        require(self.slot >= 0, "favourite.slot", "an integer >= 0", self.slot)
+
+
+@dataclass(frozen=True)
+class AlwaysTheFavourite:
+    """Rules: every partner is the member in one slot; the learner never joins."""
+
+    slot: int
+
+    def setup(self, population: Population) -> None:
+        pass
+
+    def phi(self, population: Population, exclude_slot=None) -> dict[int, float]:
+        return {population.slot_member(self.slot): 1.0}
+
+    def values(self, population: Population) -> dict[int, float | None]:
+        return dict.fromkeys(population.members)
+
+    def decide(self, population: Population, slot, rng) -> Decision:
+        return population.decide(admit=False)
+
+
+class Favourite(Method):
+    joins = False
+    section = ("favourite", FavouriteConfig)
+
+    def rules(self, config: RunConfig) -> AlwaysTheFavourite:
+        return AlwaysTheFavourite(config.favourite.slot)
+
+
+def test_a_new_method_is_one_class_and_one_registry_line(tmp_path, capsys):
+    """A method written here, outside the package, registered with one line, trains a
+    generation through the one trainer: its own section is read, the coordinator draws by
+    its rules (φ all on the favourite) and the Oracle seats what the coordinator planned."""
+    from ray import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # for the coordinator actor
+    register(Favourite("favourite", "a toy: every partner is one member"))
+    try:
+        smoke = yaml.safe_load(SMOKE.read_text())
+        out = tmp_path / "favourite"
+        said = train(smoke | {"method": "favourite", "favourite": {"slot": 2}}, out, capsys)
+        r = RunDir(out)
+        assert r.completed() == [0, 1]
+        assert r.read_json(1, "phi.json") == {"2": 1.0}  # node 2 sits in slot 2
+        assert "population fixed (favourite: a best response" in said
+        assert r.metrics_rows()[1]["accepted"] == 0
+        with pytest.raises(ConfigError, match="favourite.slot must be an integer"):
+            RunConfig.from_dict({"method": "favourite", "favourite": {"slot": "two"}})
+    finally:
+        unregister("favourite")
+        cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+    with pytest.raises(ConfigError, match="method must be one of"):
+        RunConfig.from_dict({"method": "favourite"})

@@ -1,9 +1,10 @@
-"""Each method draws partners as it says: through the coordinator's distribution
-(`Population.phi`) and the Oracle's `PartnerMapping`, checked by counting the partners of
-many Oracle episodes. Pure Python, no Ray."""
+"""Each method draws partners as it says: through its `Rules` (what the coordinator asks
+for φ and for its verdicts) and the Oracle's `PartnerMapping`, checked by counting the
+partners of many Oracle episodes. Pure Python, no Ray."""
 
 from __future__ import annotations
 
+import json
 from collections import Counter
 
 import numpy as np
@@ -11,19 +12,37 @@ import pytest
 
 from hola_ray.env.config import ConfigError
 from hola_ray.methods.config import METHODS, RunConfig
+from hola_ray.methods.mep import rank_priorities
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
-from hola_ray.population.state import EdgeResult, Population, rank_priorities
+from hola_ray.population.state import EdgeResult, Population
 
 
 def edge(nodes, weight):
     return EdgeResult(tuple(nodes), weight, 0.5, 0.0, 100.0, 4)
 
 
-def population(method: str, members: int = 4) -> Population:
-    config = RunConfig(method=method)
-    m = config.strategy
-    p = Population(3, 6, 3, config.phi_kind, 0.1, joins=m.joins, rank_beta=3.0)
-    p.add_initial(members)
+class Ruled:
+    """A population with a method's rules bound to it, as the coordinator holds them."""
+
+    def __init__(self, method: str, members: int, max_size: int = 6, top_m: int = 3, **config):
+        self.population = Population(3, max_size, top_m)
+        run = RunConfig.from_dict({"method": method, **config})
+        self.rules = run.strategy.rules(run)
+        self.population.add_initial(members)
+        self.rules.setup(self.population)
+
+    def __getattr__(self, name):
+        return getattr(self.population, name)
+
+    def phi(self, exclude_slot=None):
+        return self.rules.phi(self.population, exclude_slot)
+
+    def decide(self, slot=None, rng=None):
+        return self.rules.decide(self.population, slot, rng)
+
+
+def population(method: str, members: int = 4) -> Ruled:
+    p = Ruled(method, members)
     # unequal hyperedge weights, so a φ that reads them would not be uniform
     p.record([edge((0, 1, 2), 9.0), edge((0, 1, 3), 1.0), edge((1, 2, 3), 4.0)])
     return p
@@ -68,7 +87,7 @@ def test_mep_draws_by_rank_of_the_learners_return_to_the_power_beta():
     np.testing.assert_allclose([freq[v] for v in range(4)], expected, atol=0.01)
     # persisted and read back with its returns
     again = Population.from_dict(p.to_dict())
-    assert again.phi() == p.phi() and not again.joins
+    assert p.rules.phi(again) == p.phi()
 
 
 def test_rank_priorities_share_tied_ranks_and_work_for_negative_returns():
@@ -79,8 +98,7 @@ def test_rank_priorities_share_tied_ranks_and_work_for_negative_returns():
 
 
 def test_fcp_draws_only_its_frozen_checkpoints_uniformly_and_never_admits_the_learner():
-    p = Population(3, 6, 6, RunConfig(method="fcp").phi_kind, 0.1, joins=False)
-    p.add_initial(6)  # 2 agents × (start, middle, end)
+    p = Ruled("fcp", 6, top_m=6)  # 2 agents × (start, middle, end)
     for _ in range(3):
         node = p.propose()
         p.record([edge((node, 0, 1), 50.0)])  # the best team there is: rank 1
@@ -94,8 +112,7 @@ def test_fcp_draws_only_its_frozen_checkpoints_uniformly_and_never_admits_the_le
 
 def test_methods_that_join_take_a_top_ranked_learner():
     for method in ("hola", "hola_r", "uniform"):
-        p = Population(3, 6, 1, RunConfig(method=method).phi_kind, 0.1, joins=True)
-        p.add_initial(3)
+        p = Ruled(method, 3, top_m=1)
         p.record([edge((0, 1, 2), 1.0)])
         node = p.propose()
         p.record([edge((node, 0, 1), 50.0), edge((node, 1, 2), 50.0), edge((node, 0, 2), 50.0)])
@@ -112,8 +129,7 @@ def test_every_method_is_configured_by_its_name_alone():
 
 
 def test_pbt_trains_each_agent_with_the_others_drawn_uniformly():
-    p = Population(3, 4, 3, RunConfig(method="pbt").phi_kind, 0.1, joins=True)
-    p.add_initial(4)
+    p = Ruled("pbt", 4, max_size=4)
     for slot in range(4):
         phi = p.phi(exclude_slot=slot)
         others = [v for v in p.members if p.slots[v] != slot]
@@ -123,9 +139,15 @@ def test_pbt_trains_each_agent_with_the_others_drawn_uniformly():
 
 
 def test_pbt_replaces_the_parent_then_the_bottom_agent_exploits_the_top_and_explores():
-    p = Population(3, 3, 3, "uniform", 0.1, joins=True)
-    p.add_initial(3)
-    p.agent_hyper = {s: {"lr": 1e-3, "entropy_coef": 0.01} for s in range(3)}
+    p = Ruled(
+        "pbt",
+        3,
+        max_size=3,
+        oracle={"lr": 1e-3, "entropy_coef": 0.01},
+        pbt={"quantile": 0.34, "perturb": [0.5, 2.0]},
+    )
+    scores, hyper = p.extra["agent_scores"], p.extra["agent_hyper"]
+    assert hyper == {str(s): {"lr": 1e-3, "entropy_coef": 0.01} for s in range(3)}
     p.record([edge((0, 1, 2), 0.0)])
     rng = np.random.default_rng(0)
     returns = {0: 5.0, 1: 9.0, 2: 1.0}  # the agents' returns after their training
@@ -133,16 +155,16 @@ def test_pbt_replaces_the_parent_then_the_bottom_agent_exploits_the_top_and_expl
         node = p.propose()
         others = [v for v in p.members if p.slots[v] != slot]
         p.record([edge((node, *others), returns[slot])])
-        d = p.pbt_step(slot, rng, quantile=0.34, perturb=(0.5, 2.0))
+        d = p.decide(slot, rng)
         assert d.accepted and d.slot == slot and d.replaced == slot  # the parent's node
         assert p.slots[node] == slot and d.replaced not in p.members
         if slot < 2:  # not every agent has a score yet: no exploit
-            assert d.copied_from is None and p.agent_scores[slot] == returns[slot]
+            assert d.copied_from is None and scores[str(slot)] == returns[slot]
     # after the third: agent 2 scores lowest and copies agent 1 (the top), perturbed
     assert d.copied_from == next(v for v, s in p.slots.items() if s == 1)
-    assert p.agent_scores[2] == returns[1]
+    assert scores["2"] == returns[1]
     for h, base in (("lr", 1e-3), ("entropy_coef", 0.01)):
-        assert p.agent_hyper[2][h] in (pytest.approx(base * 0.5), pytest.approx(base * 2.0))
+        assert hyper["2"][h] in (pytest.approx(base * 0.5), pytest.approx(base * 2.0))
     assert not list(p.hyfog.incident(d.candidate))  # its hyperedges measured other weights
-    again = Population.from_dict(p.to_dict())
-    assert again.agent_hyper == p.agent_hyper and again.agent_scores == p.agent_scores
+    again = Population.from_dict(json.loads(json.dumps(p.to_dict())))
+    assert again.extra == p.extra

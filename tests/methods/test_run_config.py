@@ -109,3 +109,43 @@ def test_malformed_values_are_one_line_naming_file_line_and_field(tmp_path, text
     line = str(err.value)
     assert "\n" not in line and message in line, line
     assert line.startswith(f"{path}:"), line  # file:line: first
+
+
+def test_set_overrides_one_value_read_as_yaml(tmp_path):
+    """`python -m hola_ray.run --set section.field=value`: values read as YAML (1e-4 a
+    number, lists, nested sections), applied over the file or the embedded default."""
+    from hola_ray import run
+
+    args = run.parse_args(
+        [
+            "--config",
+            str(Path(__file__).resolve().parents[2] / "configs" / "smoke.yaml"),
+            "--out",
+            str(tmp_path / "r"),
+        ]
+        + ["--set", "oracle.lr=1e-4", "--set", "oracle.hidden=[8, 8]"]
+        + ["--set", "env.reward.approach=own_move", "--set", "method=sp"]
+    )
+    config, _ = run.resolve(args)
+    assert config.oracle.lr == 1e-4 and config.oracle.hidden == (8, 8)
+    assert config.env.reward.approach == "own_move" and config.method == "sp"
+    assert config.oracle.env_steps == 2000  # the rest is the file's
+
+
+@pytest.mark.parametrize(
+    ("sets", "message"),
+    [
+        (["oracle.lr=abc"], r"^--set: oracle.lr must be a finite number, got 'abc'$"),
+        (["population.top_m=true"], r"^--set: population.top_m must be an integer"),
+        (["oracle.hidden=64"], r"^--set: oracle.hidden must be a list"),
+        (["oracle.nope=1"], r"^--set: unknown key\(s\) oracle.nope"),
+        (["oops"], r"write section.field=value"),
+        (["generations.x=1"], r"generations is not a section"),
+    ],
+)
+def test_a_bad_set_is_one_line_naming_it(tmp_path, sets, message):
+    from hola_ray import run
+
+    argv = ["--out", str(tmp_path / "r")] + [a for s in sets for a in ("--set", s)]
+    with pytest.raises(ConfigError, match=message):
+        run.resolve(run.parse_args(argv))

@@ -18,7 +18,8 @@ from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
 
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.methods.config import RunConfig
-from hola_ray.oracle import LEARNER, Oracle, member_module
+from hola_ray.methods.trainer import make_oracle
+from hola_ray.oracle import LEARNER, member_module
 
 CONFIG = RunConfig.from_dict(
     {
@@ -42,7 +43,7 @@ COLUMNS = ("obs", "actions", "rewards", "action_dist_inputs", "action_logp")
 
 @pytest.fixture(scope="module")
 def oracle(ray_session):
-    o = Oracle(CONFIG)
+    o = make_oracle(CONFIG)
     o.train(300, progress=False)
     yield o
     o.stop()
@@ -242,7 +243,7 @@ def test_the_partner_stack_plays_each_partners_own_actor():
     from hola_ray.policies.learned import FORMAT, MLPPolicy
 
     env = CONFIG.env
-    features = CONFIG.model_features
+    features = CONFIG.oracle.model_features(CONFIG.env)
     dim = env.obs_dim + len(features["indices"])
     gen = torch.Generator().manual_seed(0)
 
@@ -278,7 +279,7 @@ def test_the_partner_stack_plays_each_partners_own_actor():
     assert stack.slots(["learner", "m3", "m0"]).tolist() == [-1, 3, 0]
 
 
-def test_an_episode_cut_at_the_horizon_bootstraps_its_last_value(oracle):
+def test_an_episode_cut_at_the_horizon_bootstraps_its_last_value(local_learner, oracle):
     """A hand-made episode of the learner, three steps of reward 1: cut at the horizon
     (truncated) its last value target is r + γ·V(s_3), the value of the observation it was
     cut at; ended (terminated) it is r alone. The same learner connector PPO trains with."""
@@ -287,7 +288,7 @@ def test_an_episode_cut_at_the_horizon_bootstraps_its_last_value(oracle):
     from ray.rllib.env.utils.infinite_lookback_buffer import InfiniteLookbackBuffer
     from ray.rllib.evaluation.postprocessing import Postprocessing
 
-    learner = oracle.algo.learner_group._learner
+    learner = local_learner(oracle.algo)
     module = learner.module[LEARNER]
     rng = np.random.default_rng(5)
     obs = rng.uniform(-1, 1, (4, CONFIG.env.obs_dim)).astype(np.float32)

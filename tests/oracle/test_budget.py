@@ -9,7 +9,8 @@ from __future__ import annotations
 import pytest
 
 from hola_ray.methods.config import RunConfig
-from hola_ray.oracle import LEARNER, Oracle
+from hola_ray.methods.trainer import make_oracle
+from hola_ray.oracle import LEARNER
 
 BUDGET = 2400
 BATCH = 600
@@ -26,6 +27,7 @@ def config(method: str, budget: str) -> RunConfig:
                 "minibatch": 200,
                 "epochs": 2,
                 "envs_per_runner": 6,
+                "env_runners": 0,  # the counts do not depend on where sampling runs
                 "env_steps": BUDGET,
                 "budget": budget,
             },
@@ -36,7 +38,7 @@ def config(method: str, budget: str) -> RunConfig:
 
 
 def train(method: str, budget: str):
-    oracle = Oracle(config(method, budget))
+    oracle = make_oracle(config(method, budget))
     try:
         stats = oracle.train(BUDGET, progress=False)
         sampled = oracle.algo.metrics.peek(

@@ -8,7 +8,8 @@ import pytest
 import torch
 
 from hola_ray.methods.config import RunConfig
-from hola_ray.oracle import LEARNER, Oracle, PartnerMapping, member_module
+from hola_ray.methods.trainer import make_oracle
+from hola_ray.oracle import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.mep import mean_policy_logp
 from hola_ray.policies.learned import (
     MLPPolicy,
@@ -43,7 +44,7 @@ def beta_mean(inputs: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def oracle(ray_session):
-    o = Oracle(CONFIG)
+    o = make_oracle(CONFIG)
     o.train(400, progress=False)  # weights pushed after a first train() are the hard case
     yield o
     o.stop()
@@ -148,7 +149,7 @@ def test_the_learner_still_explores(oracle):
         assert len(noise) > 50 and np.std(noise) > 0.1  # sampled from its Beta
 
 
-def test_exported_learner_equals_rllib_forward_inference_and_rescaling(oracle):
+def test_exported_learner_equals_rllib_forward_inference_and_rescaling(local_learner, oracle):
     from gymnasium.spaces import Box
     from ray.rllib.utils.spaces.space_utils import unsquash_action
 
@@ -165,7 +166,7 @@ def test_exported_learner_equals_rllib_forward_inference_and_rescaling(oracle):
             return dist.to_deterministic().sample().numpy()
 
     # In this process (same torch threads): bit for bit.
-    module = oracle.algo.learner_group._learner.module[LEARNER]
+    module = local_learner(oracle.algo).module[LEARNER]
     space = Box(0.0, 1.0, (1,), np.float32)
     expected = np.stack([unsquash_action(a, space) for a in deterministic(module)])[:, 0]
     np.testing.assert_array_equal(policy.act(OBS), expected)
@@ -198,8 +199,8 @@ def test_rescaling_matches_rllib_including_clipping():
     np.testing.assert_allclose(rescale_action(raw), [0, 0, 0.375, 0.5, 0.8, 1, 1])
 
 
-def test_mean_policy_logp_is_the_log_of_the_mixture_density(oracle):
-    modules = {m: oracle.algo.learner_group._learner.module[m] for m in oracle.members[:2]}
+def test_mean_policy_logp_is_the_log_of_the_mixture_density(local_learner, oracle):
+    modules = {m: local_learner(oracle.algo).module[m] for m in oracle.members[:2]}
     obs = torch.from_numpy(OBS[:8])
     actions = torch.linspace(-0.9, 0.9, 8)[:, None]
     with torch.no_grad():
@@ -226,7 +227,7 @@ def test_spread_stays_bounded_while_training():
         CONFIG.to_dict()
         | {"oracle": CONFIG.to_dict()["oracle"] | {"entropy_coef": 0.05, "lr": 0.01}}
     )
-    oracle = Oracle(wide, seed=3)
+    oracle = make_oracle(wide, seed=3)
     try:
         stats = oracle.train(1600, progress=False)
 
@@ -256,7 +257,7 @@ def test_spread_stays_bounded_while_training():
 
 def test_self_play_seats_the_learner_in_every_slot():
     config = RunConfig.from_dict(CONFIG.to_dict() | {"method": "sp"})
-    oracle = Oracle(config)
+    oracle = make_oracle(config)
     try:
         assert oracle.modules == [LEARNER] and oracle.members == []
 
@@ -277,10 +278,10 @@ def test_self_play_seats_the_learner_in_every_slot():
     assert stats.module_return.keys() <= {LEARNER}
 
 
-def test_train_runs_updates_until_its_steps_and_logs_each(oracle):
+def test_train_runs_updates_until_its_steps_and_logs_each(local_learner, oracle):
     """`train(n)` runs PPO iterations of `train_batch` steps until n are sampled, logs one
     row per iteration, and takes the update's time from the learner's own clock."""
-    learner = oracle.algo.learner_group._learner
+    learner = local_learner(oracle.algo)
     # one iteration first: the env runners' step counts also hold what earlier tests of
     # the module sampled by hand, and RLlib reports them with the next iteration
     oracle.train(1, progress=False)
@@ -293,7 +294,9 @@ def test_train_runs_updates_until_its_steps_and_logs_each(oracle):
     assert learner.update_s > clock and stats.learn_s == pytest.approx(learner.update_s - clock)
 
 
-def test_the_lean_gradient_step_equals_rllibs_and_frozen_partners_have_no_optimizer(oracle):
+def test_the_lean_gradient_step_equals_rllibs_and_frozen_partners_have_no_optimizer(
+    local_learner, oracle
+):
     """OracleLearner's minibatch step (one backward, RLlib's global-norm clip, the Adam step)
     moves the learner's weights exactly as RLlib's TorchLearner path does from the same
     weights and optimizer state; population members are never stepped."""
@@ -301,7 +304,7 @@ def test_the_lean_gradient_step_equals_rllibs_and_frozen_partners_have_no_optimi
 
     from ray.rllib.core.learner.torch.torch_learner import TorchLearner
 
-    learner = oracle.algo.learner_group._learner
+    learner = local_learner(oracle.algo)
     assert all(not learner.get_optimizers_for_module(m) for m in oracle.members)
     module = learner.module[LEARNER]
     rng = np.random.default_rng(3)
@@ -346,13 +349,15 @@ def test_the_lean_gradient_step_equals_rllibs_and_frozen_partners_have_no_optimi
         np.testing.assert_allclose(lean[k].numpy(), rllib[k].numpy(), rtol=0, atol=1e-7, err_msg=k)
 
 
-def test_a_reset_learner_trains_on_with_its_new_hyperparameters_and_a_fresh_optimizer(oracle):
+def test_a_reset_learner_trains_on_with_its_new_hyperparameters_and_a_fresh_optimizer(
+    local_learner, oracle
+):
     """PBT's explore: the lr and entropy coefficient set for an agent are the ones its
     training uses (RLlib's schedulers would otherwise put the config's back every update),
     and the previous agent's Adam moments are gone."""
     before = oracle.learner_hyperparameters()
     assert before == pytest.approx({"lr": CONFIG.oracle.lr, "entropy_coef": 0.01})
-    learner = oracle.algo.learner_group._learner
+    learner = local_learner(oracle.algo)
     (_, optim), *_ = learner.get_optimizers_for_module(LEARNER)
     assert optim.state  # trained already: Adam has moments
     try:

@@ -63,7 +63,7 @@ def test_a_pair_is_played_by_apf_a_and_greedy_takes_over_once_the_first_evader_i
 
 @pytest.fixture(scope="module")
 def dqn(ray_session, tmp_path_factory):
-    from hola_ray.policies.d3qn_train import D3QNRun, D3QNSettings, build
+    from hola_ray.evaluation.d3qn_train import D3QNRun, D3QNSettings, build
 
     run = D3QNRun(
         seed=3,
@@ -81,7 +81,7 @@ def dqn(ray_session, tmp_path_factory):
 def test_training_is_reproducible(dqn):
     """The same run trains the same network: RLlib seeds its env runner and learner, the
     replay buffer's draws are seeded by `build`, and workers share the hash seed."""
-    from hola_ray.policies.d3qn_train import MODULE, build
+    from hola_ray.evaluation.d3qn_train import MODULE, build
 
     run, algo = dqn
     again = build(run)
@@ -96,15 +96,15 @@ def test_training_is_reproducible(dqn):
         np.testing.assert_array_equal(np.asarray(first[key]), np.asarray(second[key]), key)
 
 
-def test_the_export_plays_the_dqn_modules_greedy_pair(dqn):
-    from hola_ray.policies.d3qn_train import MODULE, export_from_rllib
+def test_the_export_plays_the_dqn_modules_greedy_pair(local_learner, dqn):
+    from hola_ray.evaluation.d3qn_train import MODULE, export_from_rllib
 
     run, algo = dqn
     state = algo.learner_group.get_weights([MODULE])[MODULE]
     policy = D3QNG(run.env, export_from_rllib(state, run))
     obs = observations(run.env)
     states = torch.from_numpy(dacoop_state(obs, policy.layout, run.env.unobserved_distance))
-    module = algo.learner_group._learner.module[MODULE]
+    module = local_learner(algo).module[MODULE]
     with torch.no_grad():
         expected = module.compute_q_values({"obs": states})["qf_preds"]
     np.testing.assert_allclose(policy.q(states).numpy(), expected.numpy(), rtol=1e-5, atol=1e-5)
@@ -160,7 +160,7 @@ def test_d3qn_g_holds_its_pair_for_the_decision_interval_and_a_reset_repicks():
 
 def test_the_training_env_plays_a_pair_for_the_interval_and_sums_its_rewards():
     from hola_ray.env.pettingzoo_env import PursuitEnv
-    from hola_ray.policies.d3qn_train import D3QNEnv
+    from hola_ray.evaluation.d3qn_train import D3QNEnv
 
     config = dataclasses.replace(ONE, horizon=200)
     env = D3QNEnv({**config.to_dict(), "decision_interval": 4})
@@ -191,7 +191,7 @@ def test_training_exports_the_best_validated_network(ray_session, tmp_path):
 
     import yaml
 
-    from hola_ray.policies.d3qn_train import D3QNRun, train_d3qn, validate
+    from hola_ray.evaluation.d3qn_train import D3QNRun, train_d3qn, validate
 
     config = tmp_path / "tiny.yaml"
     config.write_text(
@@ -232,7 +232,7 @@ def test_training_exports_the_best_validated_network(ray_session, tmp_path):
 
 
 def test_the_export_is_chosen_by_the_rule_written_in_the_config():
-    from hola_ray.policies.d3qn_train import D3QNSettings, Validated, choose
+    from hola_ray.evaluation.d3qn_train import D3QNSettings, Validated, choose
 
     runs = [
         Validated(1000, 0.40, 0.50),
@@ -250,3 +250,28 @@ def test_the_export_is_chosen_by_the_rule_written_in_the_config():
         D3QNSettings(select="nearest")
     with pytest.raises(ValueError, match="best or nearest"):
         D3QNSettings(select="latest")
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("kind: d3qn\nd3qn:\n  env_steps: true\n", r":3: d3qn.env_steps must be an integer"),
+        ("kind: d3qn\nd3qn:\n  lr: '3e-4'\n", r":3: d3qn.lr must be a finite number"),
+        ("kind: d3qn\nd3qn:\n  hidden: 64\n", r":3: d3qn.hidden must be a list"),
+        ("kind: d3qn\nd3qn:\n  gamma: 1.5\n", r":3: d3qn.gamma must be in \[0, 1\]"),
+        ("kind: d3qn\nd3qn: null\n", r":2: d3qn must be a mapping"),
+        ("kind: d3qn\nseed: 1.5\n", r":2: seed must be an integer"),
+        ("kind: dqn\n", r":1: kind must be d3qn"),
+        ("kind: d3qn\nenv:\n  n_pursuers: true\n", r":3: env.n_pursuers must be an integer"),
+    ],
+)
+def test_a_malformed_d3qn_config_is_one_line_naming_file_line_and_field(tmp_path, text, message):
+    """D3QN-G configs are read with the run config's checks (types, then ranges)."""
+    from hola_ray.env.config import ConfigError
+    from hola_ray.evaluation.d3qn_train import D3QNRun
+
+    path = tmp_path / "d3qn.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message) as err:
+        D3QNRun.from_yaml(path)
+    assert "\n" not in str(err.value)

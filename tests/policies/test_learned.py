@@ -87,7 +87,7 @@ def test_an_export_carries_its_scenario_and_loads_without_one(tmp_path):
     from hola_ray.methods.config import RunConfig
 
     run = RunConfig.from_dict({"env": {"n_evaders": 1, "horizon": 300}, "oracle": {"hidden": [8]}})
-    dim = ObsLayout.from_config(run.env).dim + len(run.model_features["indices"])
+    dim = ObsLayout.from_config(run.env).dim + len(run.oracle.model_features(run.env)["indices"])
     rng = np.random.default_rng(0)
     state = {
         "encoder.actor_encoder.net.mlp.0.weight": rng.normal(size=(8, dim)),

@@ -7,6 +7,7 @@ import csv
 import numpy as np
 import pytest
 
+from hola_ray.methods.hola import InverseValue
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import EdgeResult, Population, edge_seed
 
@@ -24,7 +25,7 @@ def worked_example(max_size=4, top_m=3):
     d4 = 2 (from 1 and 2), so η = d/(5 − 1) = 0, 1, 1, 0, 0.5 and the candidate's
     competition rank is 1 + 2 = 3.
     """
-    p = Population(l=3, max_size=max_size, top_m=top_m, phi_kind="myerson", phi_shift=0.1)
+    p = Population(l=3, max_size=max_size, top_m=top_m)
     p.add_initial(4)
     p.record([edge((0, 1, 2), 5), edge((0, 1, 3), 1), edge((0, 2, 3), 1), edge((1, 2, 3), 2)])
     assert p.propose() == 4
@@ -61,7 +62,8 @@ def test_accepted_candidate_takes_a_free_slot_when_not_full():
 
 def test_phi_and_eta_leave_the_undecided_candidate_out():
     p = worked_example()
-    assert set(p.phi()) == {0, 1, 2, 3} and sum(p.phi().values()) == pytest.approx(1.0)
+    phi = InverseValue("myerson", 0.1).phi(p)  # HOLA-Drone's rules
+    assert set(phi) == {0, 1, 2, 3} and sum(phi.values()) == pytest.approx(1.0)
     # Among members only: best edges 0→{0,1,2}, 1→{0,1,2}, 2→{0,1,2}, 3→{1,2,3}:
     # d0 = 2, d1 = 3, d2 = 3, d3 = 0 → η = d/3.
     assert p.eta() == pytest.approx({0: 2 / 3, 1: 1.0, 2: 1.0, 3: 0.0})
@@ -72,10 +74,8 @@ def test_hola_and_hola_r_part_only_when_a_sampled_candidate_joins():
     value and from the mean reward are one distribution; a candidate judged on 2 sampled
     hyperedges and accepted is a member in 2, its partners in 4 or 5: they part."""
     rng = np.random.default_rng(0)
-    pops = {
-        kind: Population(l=3, max_size=6, top_m=5, phi_kind=kind, phi_shift=0.1)
-        for kind in ("myerson", "mean_reward")
-    }
+    pops = {kind: Population(l=3, max_size=6, top_m=5) for kind in ("myerson", "mean_reward")}
+    rules = {kind: InverseValue(kind, 0.1) for kind in pops}
     g0 = [
         edge(e, float(w))
         for e, w in zip(
@@ -85,20 +85,21 @@ def test_hola_and_hola_r_part_only_when_a_sampled_candidate_joins():
     for p in pops.values():
         p.add_initial(4)
         p.record(g0)
-    assert pops["myerson"].phi() == pytest.approx(pops["mean_reward"].phi(), rel=1e-12)
+    phi = {kind: rules[kind].phi(p) for kind, p in pops.items()}
+    assert phi["myerson"] == pytest.approx(phi["mean_reward"], rel=1e-12)
     for p in pops.values():
         p.propose()
         sets = p.candidate_edges(2, np.random.default_rng(1))
         assert len(sets) == 2
         p.record([edge(e, 18.0 + k) for k, e in enumerate(sets)])
         assert p.decide().accepted
-    mv, mr = pops["myerson"].phi(), pops["mean_reward"].phi()
+    mv, mr = (rules[kind].phi(p) for kind, p in pops.items())
     assert set(mv) == set(mr) == {0, 1, 2, 3, 4}
     assert max(abs(mv[v] - mr[v]) for v in mv) > 0.01
 
 
 def test_candidate_edges_sample_distinct_sets_reproducibly():
-    p = Population(l=3, max_size=10, top_m=3, phi_kind="myerson", phi_shift=0.1)
+    p = Population(l=3, max_size=10, top_m=3)
     p.add_initial(5)
     c = p.propose()
     every = p.candidate_edges(0, np.random.default_rng(0))

@@ -1,6 +1,6 @@
 """Training D3QN-G with RLlib's DQN (new API stack): see `hola_ray.policies.d3qn`.
 
-    python -m hola_ray.policies.d3qn_train configs/pools/d3qn-g-1.yaml runs/pools/d3qn-g-1
+    python -m hola_ray.evaluation.d3qn_train configs/pools/d3qn-g-1.yaml runs/pools/d3qn-g-1
 
 `python -m hola_ray.pools build --pool het` calls `train_d3qn` for each D3QN-G member; a
 finished run directory (its `export.pt`) is reused, never retrained.
@@ -12,7 +12,8 @@ import argparse
 import csv
 import json
 import time
-from dataclasses import asdict, dataclass, fields
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,17 @@ from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 from ray.tune.registry import register_env
 
-from hola_ray.env.config import PursuitConfig, load_yaml
+from hola_ray.env.config import (
+    ConfigError,
+    PursuitConfig,
+    checked,
+    consume_fields,
+    finite_in,
+    load_yaml,
+    located,
+    positive_int,
+    require,
+)
 from hola_ray.env.horizon import horizon_is_truncation
 from hola_ray.env.layout import ObsLayout
 from hola_ray.env.pettingzoo_env import PursuitEnv
@@ -72,12 +83,26 @@ class D3QNSettings:
     figure: the pool should be as strong as the paper's, not stronger)"""
 
     def __post_init__(self) -> None:
-        if self.select not in ("best", "nearest"):
-            raise ValueError(f"d3qn.select must be best or nearest, got {self.select!r}")
+        s = "d3qn"
+        positive_int(s, self, "env_steps", "batch", "buffer", "envs", "fragment", "n_step")
+        positive_int(s, self, "decision_interval", "validate_episodes", "target_update")
+        positive_int(s, self, "epsilon_steps", "learning_starts", "validate_every", minimum=0)
+        for name in ("hidden", "head_hidden"):
+            widths = getattr(self, name)
+            ok = all(isinstance(h, int) and not isinstance(h, bool) and h >= 1 for h in widths)
+            ok = ok and (name == "head_hidden" or len(widths) > 0)
+            require(ok, f"d3qn.{name}", "a list of positive layer widths", widths)
+        finite_in(s, self, "lr", 1e-8, 1.0, "in [1e-8, 1]")
+        for name in ("gamma", "alpha", "beta", "epsilon_start", "epsilon_end"):
+            finite_in(s, self, name, 0.0, 1.0, "in [0, 1]")
+        finite_in(s, self, "training_intensity", 1e-3, 1e3, "in [0.001, 1000]")
+        require(self.select in ("best", "nearest"), "d3qn.select", "best or nearest", self.select)
         if self.select == "nearest" and not (
             isinstance(self.target_success, int | float) and 0 <= self.target_success <= 1
         ):
-            raise ValueError("d3qn.select: nearest needs d3qn.target_success in [0, 1]")
+            raise ConfigError(
+                "d3qn.select: nearest needs d3qn.target_success in [0, 1]", "d3qn.target_success"
+            )
 
 
 @dataclass(frozen=True)
@@ -89,23 +114,39 @@ class D3QNRun:
     d3qn: D3QNSettings
 
     @classmethod
-    def from_yaml(cls, path: str | Path) -> D3QNRun:
-        raw = load_yaml(path) or {}
-        unknown = set(raw) - {"kind", "seed", "env", "d3qn"}
-        if unknown or raw.get("kind") != "d3qn":
-            raise ValueError(f"{path}: a D3QN-G config has kind: d3qn, seed, env, d3qn only")
-        allowed = {f.name for f in fields(D3QNSettings)}
-        settings = raw.get("d3qn") or {}
-        if set(settings) - allowed:
-            raise ValueError(f"{path}: unknown d3qn fields {sorted(set(settings) - allowed)}")
+    def from_dict(cls, raw: Any) -> D3QNRun:
+        """Read with the run config's checks: every malformed value is one `ConfigError`
+        naming its field."""
+        if not isinstance(raw, Mapping):
+            raise ConfigError(f"a D3QN-G config must be a mapping, got {type(raw).__name__}")
+        unknown = sorted(set(raw) - {"kind", "seed", "env", "d3qn"})
+        if unknown:
+            raise ConfigError(
+                f"unknown key(s) {', '.join(unknown)}; allowed: d3qn, env, kind, seed", unknown[0]
+            )
+        require(raw.get("kind") == "d3qn", "kind", "d3qn", raw.get("kind"))
+        seed = checked(int, raw.get("seed", 0), "seed")
+        require(seed >= 0, "seed", "an integer >= 0", seed)
+        settings = raw.get("d3qn", {})
+        if not isinstance(settings, Mapping):
+            raise ConfigError(f"d3qn must be a mapping, got {settings!r}", "d3qn")
+        kwargs = consume_fields(D3QNSettings, settings, "d3qn.")
         for key in ("hidden", "head_hidden"):
-            if key in settings:
-                settings[key] = tuple(settings[key])
-        return cls(
-            seed=int(raw.get("seed", 0)),
-            env=PursuitConfig.from_dict(raw.get("env") or {}),
-            d3qn=D3QNSettings(**settings),
-        )
+            if key in kwargs:
+                kwargs[key] = tuple(kwargs[key])
+        try:
+            env = PursuitConfig.from_dict(raw.get("env", {}))
+        except ConfigError as err:
+            raise err.within("env") from None
+        return cls(seed=seed, env=env, d3qn=D3QNSettings(**kwargs))
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> D3QNRun:
+        """A D3QN-G config file; errors are one line naming the file, line and field."""
+        try:
+            return cls.from_dict(load_yaml(path))
+        except ConfigError as err:
+            raise located(err, path) from None
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -174,7 +215,8 @@ class D3QNEnv(MultiAgentEnv):
         return self._states(obs), rewards, terms, truncs, infos
 
 
-register_env(ENV_NAME, lambda cfg: D3QNEnv(cfg))
+def _make_env(cfg):
+    return D3QNEnv(cfg)
 
 
 class HorizonTruncates(RLlibCallback):
@@ -189,6 +231,7 @@ def algorithm_config(run: D3QNRun):
     from ray.rllib.algorithms.dqn import DQNConfig
 
     s = run.d3qn
+    register_env(ENV_NAME, _make_env)  # in this Ray session (Tune's registry lives there)
     return (
         DQNConfig()
         .environment(
@@ -399,7 +442,7 @@ def train_d3qn(
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m hola_ray.policies.d3qn_train")
+    parser = argparse.ArgumentParser(prog="python -m hola_ray.evaluation.d3qn_train")
     parser.add_argument("config", type=Path)
     parser.add_argument("out", type=Path)
     args = parser.parse_args(argv)
@@ -409,12 +452,12 @@ def main(argv: list[str] | None = None) -> None:
 
 def script() -> None:
     """`hola-d3qn` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
-    hola_ray.policies.d3qn_train` runs it (`hola_ray.progress.fixed_hash_seed`)."""
+    hola_ray.evaluation.d3qn_train` runs it (`hola_ray.progress.fixed_hash_seed`)."""
     import sys
 
     from hola_ray.progress import fixed_hash_seed
 
-    fixed_hash_seed("hola_ray.policies.d3qn_train", sys.argv[1:])
+    fixed_hash_seed("hola_ray.evaluation.d3qn_train", sys.argv[1:])
     main()
 
 

@@ -1,0 +1,95 @@
+"""The paper's experiment on Ray: every method × seed, then the zero-shot evaluation.
+
+    python -m hola_ray.experiment --config configs/experiments/X.yaml [--out DIR]
+    python -m hola_ray.experiment --resume DIR
+
+The experiment config and what the command does: `hola_ray.experiment`'s doc.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+from hola_ray.env.config import ConfigError
+from hola_ray.experiment.config import CONFIG_NAME, Experiment
+from hola_ray.experiment.runner import Runner
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m hola_ray.experiment", description=__doc__.split("\n\n")[0]
+    )
+    parser.add_argument("--config", type=Path, help="experiment YAML (configs/experiments/)")
+    parser.add_argument("--out", type=Path, help="experiment directory (default runs/<name>-…)")
+    parser.add_argument("--resume", type=Path, metavar="DIR", help="continue an experiment")
+    parser.add_argument("--num-cpus", type=int, help="CPUs of the local Ray (default: all)")
+    args = parser.parse_args(argv)
+    try:
+        if args.resume is not None:
+            if args.config is not None or args.out is not None:
+                raise ConfigError("--resume DIR takes the experiment's own config; drop --config")
+            saved = args.resume / CONFIG_NAME
+            if not saved.is_file():
+                raise ConfigError(f"--resume {args.resume}: no {CONFIG_NAME} there")
+            experiment, out = Experiment.from_yaml(saved), args.resume
+        elif args.config is None:
+            raise ConfigError("give --config configs/experiments/X.yaml or --resume DIR")
+        else:
+            experiment = Experiment.from_yaml(args.config)
+            out = args.out or Path("runs") / time.strftime(f"{args.config.stem}-%Y%m%d-%H%M%S")
+            if (out / CONFIG_NAME).is_file():
+                raise ConfigError(f"{out} already holds an experiment; continue it with --resume")
+    except ConfigError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    if args.resume is None:
+        out.mkdir(parents=True, exist_ok=True)
+        # the base is resolved now, so that the saved copy does not depend on where it lives
+        saved = {
+            "base": str(experiment.base_path().resolve()),
+            "overrides": experiment.overrides,
+            "methods": experiment.methods,
+            "seeds": list(experiment.seeds),
+            "parallel": experiment.parallel,
+            "evaluation": {
+                k: [list(x) if isinstance(x, tuple) else x for x in v]
+                if isinstance(v, tuple)
+                else v
+                for k, v in experiment.evaluation.__dict__.items()
+            },
+        }
+        (out / CONFIG_NAME).write_text(yaml.safe_dump(saved, sort_keys=False))
+    from hola_ray.population.coordinator import NAMESPACE
+    from hola_ray.progress import init_ray
+
+    init_ray(NAMESPACE, args.num_cpus)
+    trials = experiment.trials()
+    print(
+        f"experiment in {out}: {len(experiment.methods)} method(s) × {len(experiment.seeds)} "
+        f"seed(s) = {len(trials)} trials; base {experiment.base}",
+        flush=True,
+    )
+    try:
+        Runner(experiment, out, say=lambda s: print(s, flush=True)).run()
+    except RuntimeError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def script() -> None:
+    """`hola-experiment` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
+    hola_ray.experiment` runs it (`hola_ray.progress.fixed_hash_seed`)."""
+    from hola_ray.progress import fixed_hash_seed
+
+    fixed_hash_seed("hola_ray.experiment", sys.argv[1:])
+    sys.exit(main())
+
+
+if __name__ == "__main__":
+    script()

@@ -1,0 +1,107 @@
+"""The experiment's results: per method and pool over the trials, the paired differences
+between methods (`hola_ray.evaluation.compare`), and results.md's table."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hola_ray.experiment.config import parse_trial
+
+EVALUATION_FORMAT = 2
+"""the layout of a cached trial evaluation (2: every episode's record, for the bootstrap)"""
+
+
+def aggregate(
+    per_trial: Mapping[str, Mapping[str, Mapping[str, Any]]],
+    methods: Sequence[str],
+    pairs: Sequence[tuple[str, str]] = (),
+) -> tuple[dict[str, dict[str, dict[str, Any]]], dict[str, dict[str, dict[str, Any]]]]:
+    """Per method and pool: every metric's mean over the method's seeds with its standard
+    error (`_se`) and 95 % interval (`_ci95`), and the BR-Prox score's mean over seeds; per
+    pair "A-B" and pool, each metric's paired difference {mean, se, ci95}. Intervals and
+    standard errors from `hola_ray.evaluation.compare` (training seeds and episodes)."""
+    from hola_ray.evaluation.compare import METRICS, compare
+
+    pools_ = sorted({p for r in per_trial.values() for p in r}, key=lambda p: (p != "hot", p))
+    out: dict[str, dict[str, dict[str, Any]]] = {m: {} for m in methods}
+    differences: dict[str, dict[str, dict[str, Any]]] = {f"{a}-{b}": {} for a, b in pairs}
+    for pool in pools_:
+        rows = {
+            m: [r[pool] for t, r in per_trial.items() if parse_trial(t)[0] == m and pool in r]
+            for m in methods
+        }
+        rows = {m: rs for m, rs in rows.items() if rs}
+        episodes = {
+            m: [{k: np.asarray(v) for k, v in r["per_episode"].items()} for r in rs]
+            for m, rs in rows.items()
+        }
+        wanted = [(a, b) for a, b in pairs if a in rows and b in rows]
+        figures, diffs = compare(episodes, wanted)
+        for m, rs in rows.items():
+            entry: dict[str, Any] = {"trials": len(rs)}
+            for k in METRICS:
+                entry[k] = figures[m][k]["mean"]
+                entry[f"{k}_se"] = figures[m][k]["se"]
+                entry[f"{k}_ci95"] = figures[m][k]["ci95"]
+            scores = np.array([r["score_iqm"] for r in rs], dtype=np.float64)
+            entry["score"] = float(scores.mean())
+            entry["score_se"] = (
+                float(scores.std(ddof=1) / np.sqrt(scores.size)) if scores.size > 1 else 0.0
+            )
+            out[m][pool] = entry
+        for (a, b), key in zip(wanted, diffs, strict=True):
+            differences[f"{a}-{b}"][pool] = diffs[key]
+    return out, differences
+
+
+def results_table(
+    methods: Mapping[str, Mapping[str, Mapping[str, Any]]],
+    differences: Mapping[str, Mapping[str, Mapping[str, Any]]],
+    seeds: int,
+) -> str:
+    """results.md: every method's figures, then the paired differences with a verdict."""
+    from hola_ray.evaluation.compare import HIGHER_IS_BETTER, verdict
+    from hola_ray.evaluation.report import table_lines
+
+    lines = [
+        f"Mean over {seeds} training seed(s) per method; [95 % interval]: a stratified "
+        "bootstrap over training seeds (within each method) and evaluation episodes (within "
+        "each partner combination). Steps to success: mean length of the successful "
+        "episodes (AT-Drone's AST); reward: mean per-pursuer return (REW).",
+        "",
+        *table_lines(methods, "method"),
+        "",
+        "Paired differences A − B on the same episodes, [95 % interval]. An interval that "
+        "contains zero is a tie.",
+        "",
+        "| A − B | pool | success | collision | length | learner crashed |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
+    for pair, by_pool in differences.items():
+        a = pair.split("-")[0]
+        for pool, diff in by_pool.items():
+            cells = []
+            for m in ("success", "collision", "length", "learner_crash"):
+                d = diff[m]
+                lo, hi = d["ci95"]
+                word = verdict(d, HIGHER_IS_BETTER[m])
+                word = "tie" if word == "tie" else f"{a} {word}"
+                if m == "length":
+                    cells.append(f"{d['mean']:+.1f} [{lo:+.1f}, {hi:+.1f}] {word}")
+                else:
+                    cells.append(f"{d['mean']:+.1%} [{lo:+.1%}, {hi:+.1%}] {word}")
+            lines.append(f"| {pair} | {pool} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _atomic_json(path: Path, data: Any) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1))
+    os.replace(tmp, path)

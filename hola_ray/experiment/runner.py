@@ -1,0 +1,395 @@
+"""The experiment's driver: `Runner` trains every trial as a Ray task in a placement group
+of its own, evaluates the learners against the pools and writes the results."""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Collection, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from hola_ray.experiment.config import Experiment, parse_trial
+from hola_ray.experiment.results import (
+    EVALUATION_FORMAT,
+    _atomic_json,
+    aggregate,
+    results_table,
+)
+from hola_ray.experiment.tasks import MARK, _evaluate_trial, _reference, _run_trial, trial_state
+
+
+# ---- trials on Ray --------------------------------------------------------------------------
+class Runner:
+    """Runs an experiment's trials as Ray tasks, evaluates them and writes the results."""
+
+    def __init__(self, experiment: Experiment, out: Path, say=print, poll_s: float = 5.0):
+        self.exp = experiment
+        self.out = Path(out)
+        self.say = say
+        self.poll_s = poll_s
+        self.trials_dir = self.out / "trials"
+        self.eval_dir = self.out / "evaluation"
+        # every trial's run config, read once (the progress view polls every few seconds)
+        self.configs = {t: experiment.run_config(t) for t in experiment.trials()}
+        self.mirror: bool | None = None
+        """None: each trial mirrors its folder to this node if its own node cannot see
+        DIR (`sees`); True / False: always / never"""
+
+    def token(self) -> str:
+        """DIR/.experiment's token (made once): a trial's node that reads it sees DIR."""
+        import uuid
+
+        mark = self.out / MARK
+        if not mark.is_file():
+            self.out.mkdir(parents=True, exist_ok=True)
+            mark.write_text(uuid.uuid4().hex)
+        return mark.read_text()
+
+    def trial_dir(self, trial: str) -> Path:
+        return self.trials_dir / trial
+
+    def states(self) -> dict[str, tuple[str, int | None]]:
+        return {
+            t: trial_state(self.trial_dir(t), self.configs[t].generations)
+            for t in self.exp.trials()
+        }
+
+    def bundles(self, trial: str) -> list[dict[str, float]]:
+        """A trial's placement group: its own process (the PPO learner, with its GPUs) and
+        one CPU per env runner."""
+        oracle = self.configs[trial].oracle
+        head = {"CPU": 1.0} | ({"GPU": oracle.gpus_per_learner} if oracle.gpus_per_learner else {})
+        return [head] + [{"CPU": 1.0} for _ in range(oracle.env_runners)]
+
+    def needs(self, trial: str) -> dict[str, float]:
+        """A trial's CPUs and GPUs, all its bundles together."""
+        return {r: sum(b.get(r, 0.0) for b in self.bundles(trial)) for r in ("CPU", "GPU")}
+
+    def parallel(self) -> int:
+        """Trials started at once: the config's `parallel`, else all of them (their
+        placement groups wait in Ray until CPUs are free, or an autoscaler adds nodes)."""
+        return self.exp.parallel if self.exp.parallel > 0 else len(self.exp.trials())
+
+    def fit_now(self) -> int:
+        """How many trials the cluster's CPUs (and GPUs, for trials that want them) hold
+        side by side as it is now."""
+        import ray
+
+        have = ray.cluster_resources()
+        width = len(self.exp.trials())
+        for t in self.exp.trials():
+            for resource, need in self.needs(t).items():
+                if need > 0:
+                    width = min(width, int(have.get(resource, 0.0) // need))
+        return max(1, width)
+
+    def place(self, trial: str) -> tuple[Any, dict[str, Any]]:
+        """Reserve a trial's placement group. The trial's task takes the first bundle and
+        the env runners and members it starts are captured in the group."""
+        from ray.util.placement_group import placement_group
+        from ray.util.scheduling_strategies import PlacementGroupSchedulingStrategy
+
+        bundles = self.bundles(trial)
+        group = placement_group(bundles, strategy="PACK")
+        strategy = PlacementGroupSchedulingStrategy(
+            group, placement_group_bundle_index=0, placement_group_capture_child_tasks=True
+        )
+        head = bundles[0]
+        options = {"num_cpus": head["CPU"], "scheduling_strategy": strategy}
+        if head.get("GPU"):
+            options["num_gpus"] = head["GPU"]
+        return group, options
+
+    def _check_fits(self, trials: Sequence[str]) -> None:
+        """Say so at once when a trial's group cannot fit the cluster as it is now (it then
+        waits for nodes to join, as an autoscaling cluster's would)."""
+        import ray
+
+        have = ray.cluster_resources()
+        for t in trials:
+            for resource, need in self.needs(t).items():
+                if need > have.get(resource, 0.0):
+                    self.say(
+                        f"warning: {t} needs {need:g} {resource}(s) and the cluster has "
+                        f"{have.get(resource, 0.0):g}: it waits until nodes join"
+                    )
+
+    # ---- phase 1: training ------------------------------------------------------------------
+    trial_fn = staticmethod(_run_trial)
+
+    def train(self) -> None:
+        import ray
+
+        from hola_ray.experiment.mirror import pack
+
+        states = self.states()
+        todo = [t for t, (s, _) in states.items() if s != "done"]
+        for t, (s, last) in states.items():
+            if s == "done":
+                self.say(f"{t}: done (generation {last}), not rerun")
+            elif s == "partial":
+                self.say(f"{t}: resumes after generation {last}")
+        if not todo:
+            return
+        remote = ray.remote(max_retries=0)(self.trial_fn)
+        width = self.parallel()
+        self.say(
+            f"training {len(todo)} trial(s), "
+            + (f"{width} at a time" if self.exp.parallel else "all asking Ray for CPUs at once")
+            + f"; this cluster holds {self.fit_now()} side by side now"
+        )
+        self._check_fits(todo)
+        token, here = self.token(), ray.get_runtime_context().get_node_id()
+        running: dict[Any, str] = {}
+        groups: dict[str, Any] = {}
+        placing: dict[str, Any] = {}  # trial → its group's ready(), until the group is placed
+        started: dict[str, float] = {}
+        failed: dict[str, str] = {}
+        waiting = list(todo)
+        last_view, last_line = 0.0, ""
+        try:
+            while waiting or running:
+                while waiting and len(running) < width:
+                    t = waiting.pop(0)
+                    groups[t], options = self.place(t)
+                    placing[t] = groups[t].ready()
+                    # a partial trial starts from the driver's copy wherever it lands
+                    partial = states[t][0] == "partial"
+                    ref = remote.options(**options).remote(
+                        self.configs[t].to_dict(),
+                        str(self.trial_dir(t).resolve()),
+                        token,
+                        here,
+                        pack(self.trial_dir(t)) if partial else None,
+                        self.mirror,
+                        self.donors(t),
+                    )
+                    running[ref] = t
+                    started[t] = time.monotonic()
+                ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_s)
+                for ref in ready:
+                    t = running.pop(ref)
+                    try:
+                        how = ray.get(ref)
+                        took = time.monotonic() - started[t]
+                        self.say(f"{t}: done in {took / 60:.1f} min ({how})")
+                    except Exception as err:  # noqa: BLE001 - one failed trial must not stop the rest
+                        failed[t] = f"{type(err).__name__}: {str(err).splitlines()[-1][:300]}"
+                        self.say(f"{t}: FAILED: {failed[t]}")
+                    ray.util.remove_placement_group(groups.pop(t))
+                    placing.pop(t, None)
+                for t, ref in list(placing.items()):
+                    if ray.wait([ref], timeout=0)[0]:
+                        del placing[t]
+                line = self.view(running.values(), waiting, failed, placing)
+                # say it when it changed, and at least once a minute
+                if line != last_line or time.monotonic() - last_view >= 60.0:
+                    self.say(f"[{time.strftime('%H:%M:%S')}] {line}")
+                    last_view, last_line = time.monotonic(), line
+        finally:
+            for group in groups.values():
+                ray.util.remove_placement_group(group)
+        if failed:
+            raise RuntimeError(
+                f"{len(failed)} trial(s) failed: {', '.join(failed)}; fix and run "
+                f"`python -m hola_ray.experiment --resume {self.out}`"
+            )
+
+    def view(
+        self,
+        running: Sequence[str],
+        waiting: Sequence[str],
+        failed: Mapping[str, str],
+        placing: Collection[str] = (),
+    ) -> str:
+        """DIR/progress.json and a progress line: which trials run, wait for their CPUs
+        (`placing`: started, their placement group not yet placed), wait or are done."""
+        states = self.states()
+        rows = {}
+        for t, (s, last) in states.items():
+            total = self.configs[t].generations
+            if t in failed:
+                status = "failed"
+            elif s == "done":
+                status = "done"
+            elif t in placing:
+                status = "placing"
+            elif t in running:
+                status = "running"
+            else:
+                status = "waiting"
+            rows[t] = {"status": status, "generation": last, "generations": total}
+        _atomic_json(self.out / "progress.json", rows)
+        counts = {k: sum(r["status"] == k for r in rows.values()) for k in ("done", "running")}
+        busy = ", ".join(
+            f"{t} gen {rows[t]['generation'] if rows[t]['generation'] is not None else '-'}"
+            f"/{rows[t]['generations']}"
+            for t in running
+            if t not in placing
+        )
+        return (
+            f"trials: {counts['done']} done, {counts['running']} running ({busy or 'none'}), "
+            + (f"{len(placing)} waiting for CPUs ({', '.join(placing)}), " if placing else "")
+            + f"{len(waiting)} waiting"
+            + (f", {len(failed)} failed" if failed else "")
+        )
+
+    # ---- phase 2: evaluation ----------------------------------------------------------------
+    def learner_file(self, trial: str) -> Path:
+        root = self.trial_dir(trial)
+        return root / ("best.pt" if self.exp.evaluation.learner == "best" else "learner.pt")
+
+    def evaluate(self) -> dict[str, dict[str, Any]]:
+        import ray
+
+        self.eval_dir.mkdir(parents=True, exist_ok=True)
+        from hola_ray.evaluation.zero_shot import pool_fingerprints
+
+        settings = {
+            "episodes": self.exp.evaluation.episodes,
+            "seeds": list(self.exp.evaluation.seeds),
+            "cell_episodes": self.exp.evaluation.cell_episodes,
+            "pools": list(self.exp.evaluation.pools),
+            "format": EVALUATION_FORMAT,
+            "pool_manifests": pool_fingerprints(self.exp.evaluation.pools),
+        }
+        results: dict[str, dict[str, Any]] = {}
+        todo: list[str] = []
+        for t in self.exp.trials():
+            cached = self.eval_dir / f"{t}.json"
+            if cached.is_file():
+                saved = json.loads(cached.read_text())
+                if saved.get("settings") == settings:
+                    results[t] = saved["pools"]
+                    continue
+            todo.append(t)
+        if not todo:
+            return {t: results[t] for t in self.exp.trials()}
+        scenarios = {self.configs[t].env.n_evaders for t in todo}
+        if len(scenarios) > 1:
+            raise RuntimeError(f"the trials play different numbers of evaders {scenarios}")
+        evaders = scenarios.pop()
+        self.say(
+            f"evaluating {len(todo)} learner(s) against {', '.join(settings['pools'])}: "
+            "the pools' reference returns first"
+        )
+        start = time.monotonic()
+        reference = ray.remote(num_cpus=1, max_retries=1)(_reference)
+        refs = {p: reference.remote(p, settings, evaders) for p in settings["pools"]}
+        references = ray.put({p: ray.get(r) for p, r in refs.items()})
+        self.say(f"reference returns: {time.monotonic() - start:.0f} s")
+        remote = ray.remote(num_cpus=1, max_retries=1)(_evaluate_trial)
+        pending: dict[Any, str] = {
+            remote.remote(self.learner_file(t).read_bytes(), settings, evaders, references): t
+            for t in todo
+        }
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            t = pending.pop(ready[0])
+            results[t] = ray.get(ready[0])
+            _atomic_json(self.eval_dir / f"{t}.json", {"settings": settings, "pools": results[t]})
+            figures = "; ".join(
+                f"{p} success {r['success']:.1%}, collision {r['collision']:.1%}"
+                for p, r in results[t].items()
+            )
+            self.say(f"{t}: {figures}")
+        return {t: results[t] for t in self.exp.trials()}
+
+    # ---- phase 3: results -------------------------------------------------------------------
+    def write_results(self, per_trial: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+        from hola_ray.evaluation.compare import METRICS
+        from hola_ray.evaluation.report import plot
+
+        methods, differences = aggregate(per_trial, list(self.exp.methods), self.exp.pairs())
+        trials = {
+            t: {
+                "method": parse_trial(t)[0],
+                "seed": parse_trial(t)[1],
+                **self.budget_spent(t),
+                "pools": {
+                    p: {k: r[k] for k in METRICS}
+                    | {f"{k}_se": r[f"{k}_se"] for k in METRICS}
+                    | {"score": r["score_iqm"]}
+                    for p, r in pools_.items()
+                },
+            }
+            for t, pools_ in per_trial.items()
+        }
+        results = {
+            "experiment": str(self.exp.source) if self.exp.source else None,
+            "base": self.exp.base,
+            "seeds": list(self.exp.seeds),
+            "evaluation": {
+                "episodes_per_seed": self.exp.evaluation.episodes,
+                "seeds": list(self.exp.evaluation.seeds),
+                "learner": self.exp.evaluation.learner,
+            },
+            "trials": trials,
+            "methods": methods,
+            "differences": differences,
+            "intervals": "95 %, stratified bootstrap: training seeds within each method, "
+            "episodes within each partner combination, shared by every trial (paired)",
+        }
+        _atomic_json(self.out / "results.json", results)
+        figure_input = {
+            m: {p: {**r, "score_iqm": r["score"]} for p, r in pools_.items()}
+            for m, pools_ in methods.items()
+        }
+        png, _ = plot(figure_input, self.out)
+        png.replace(self.out / "figure.png")
+        (self.out / "evaluation.md").unlink(missing_ok=True)
+        (self.out / "results.md").write_text(
+            results_table(figure_input, differences, len(self.exp.seeds))
+        )
+        return results
+
+    def donors(self, trial: str) -> list[str]:
+        """The other trials whose generation 0 this trial may take: the same
+        `generation_zero_key` (seed, scenario, PPO and pre-training settings)."""
+        key = self.configs[trial].generation_zero_key()
+        if key is None:
+            return []
+        return [
+            str(self.trial_dir(t).resolve())
+            for t, c in self.configs.items()
+            if t != trial and c.generation_zero_key() == key
+        ]
+
+    def budget_spent(self, trial: str) -> dict[str, Any]:
+        """What a trial's training took: env steps, the learner's own transitions and
+        gradient steps (cumulative, at its last generation), pre-training env steps, and the
+        wall time of all its generations."""
+        from hola_ray.population.rundir import RunDir
+
+        rows = RunDir(self.trial_dir(trial)).metrics_rows()
+        if not rows:
+            return {}
+        last = rows[-1]
+
+        def number(row, key):
+            value = row.get(key, "")
+            return float(value) if value not in ("", None) else 0.0
+
+        return {
+            "env_steps": int(number(last, "env_steps")),
+            "learner_samples": int(number(last, "learner_samples")),
+            "gradient_steps": int(number(last, "gradient_steps")),
+            "pretrain_env_steps": int(number(rows[0], "pretrain_env_steps")),
+            "train_s": round(
+                sum(
+                    # a generation's wall time; older runs and generation 0: its phases
+                    number(r, "wall_s")
+                    or sum(number(r, k) for k in ("pretrain_s", "oracle_s", "grapher_s", "eval_s"))
+                    for r in rows
+                ),
+                1,
+            ),
+        }
+
+    def run(self) -> dict[str, Any]:
+        self.train()
+        per_trial = self.evaluate()
+        results = self.write_results(per_trial)
+        self.say(f"wrote {self.out / 'results.json'}, results.md and figure.png")
+        return results

@@ -1,0 +1,84 @@
+"""Fictitious Co-Play (Strouse et al. 2021): a best response to frozen self-play
+checkpoints, drawn uniformly. The population is `fcp.agents` self-play agents, each from
+its own seed, frozen at the start, the middle and the end of its training."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
+
+from hola_ray.env.checks import positive_int, require
+from hola_ray.methods.base import Built, Method
+from hola_ray.oracle import LEARNER, Oracle
+from hola_ray.oracle.config import Seating
+
+if TYPE_CHECKING:
+    from hola_ray.methods.config import RunConfig
+    from hola_ray.methods.trainer import Trainer
+
+
+@dataclass(frozen=True)
+class FCPConfig:
+    """Fictitious Co-Play's partner population (method fcp; Strouse et al. 2021)."""
+
+    agents: int = 2
+    """self-play agents, each from its own seed; each gives 3 members (its start, middle
+    and end checkpoints), so population.max_size must hold 3 · agents"""
+    env_steps: int = 100_000
+    """environment steps of each agent's self-play training"""
+
+    def validate(self) -> None:
+        positive_int("fcp", self, "agents", "env_steps")
+
+
+class FCP(Method):
+    joins: ClassVar[bool] = False
+    section = ("fcp", FCPConfig)
+
+    def validate(self, config: RunConfig) -> None:
+        members = 3 * config.fcp.agents
+        require(
+            config.l <= members <= config.population.max_size,
+            "fcp.agents",
+            f"such that l = {config.l} <= 3 · fcp.agents <= population.max_size "
+            f"({config.population.max_size})",
+            config.fcp.agents,
+        )
+
+    def build_population(self, trainer: Trainer) -> Built:
+        c = trainer.config
+        # FCP's partners, like MEP's, are built in environment steps (`fcp.env_steps`)
+        oracle_config = dataclasses.replace(c.oracle, budget="env_steps")
+        states = []
+        parts = []
+        for i in range(c.fcp.agents):
+            oracle = Oracle(c.env, oracle_config, Seating(), fcp_seed(c.seed, i))
+            try:
+                states.append(oracle.weights([LEARNER])[LEARNER])
+                half = c.fcp.env_steps // 2
+                for part, budget in (("middle", half), ("end", c.fcp.env_steps - half)):
+                    stats = oracle.train(
+                        budget,
+                        desc=f"pre-train (FCP agent {i}, to {part})",
+                        progress=trainer.progress,
+                    )
+                    parts.append(stats)
+                    states.append(oracle.weights([LEARNER])[LEARNER])
+            finally:
+                oracle.stop()
+        total = dataclasses.replace(
+            parts[-1],
+            **{k: sum(getattr(p, k) for p in parts) for k in ("env_steps", "wall_s", "sample_s")},
+            learn_s=sum(p.learn_s for p in parts),
+        )
+        said = f"trained {c.fcp.agents} self-play agent(s) for FCP ({len(states)} checkpoints)"
+        return Built(states, total, said)
+
+
+def fcp_seed(run_seed: int, agent: int) -> int:
+    """The seed of FCP's self-play agent `agent`: apart from the run's own and each other's."""
+    return run_seed + 1000 * (agent + 1)
+
+
+METHOD = FCP("fcp", "FCP: a best response to frozen self-play checkpoints, drawn uniformly")

@@ -1,0 +1,145 @@
+"""Population-based training (Jaderberg et al. 2017, as Carroll et al. 2019 use it): the
+initial agents are trained jointly with each other (MEP's pre-training without its
+entropy bonus); then each generation trains one agent in turn, with partners drawn
+uniformly from the others, and it replaces its earlier self. Once every agent has a score,
+an agent in the bottom quantile exploits (copies an agent from the top quantile) and
+explores (perturbs that agent's lr and entropy coefficient)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import ray
+
+from hola_ray.env.checks import finite_in, require
+from hola_ray.hypergraph import centrality, rank_of
+from hola_ray.methods.base import Built, Method, Uniform, pretrain_jointly
+from hola_ray.oracle import LEARNER, Oracle
+from hola_ray.population.state import Decision, Population
+
+if TYPE_CHECKING:
+    from hola_ray.methods.config import RunConfig
+    from hola_ray.methods.trainer import Trainer
+
+
+@dataclass(frozen=True)
+class PBTConfig:
+    """Population-based training's exploit and explore (method pbt). Each generation
+    trains one agent, in turn, with partners drawn uniformly from the other agents; it then
+    replaces its earlier self."""
+
+    quantile: float = 0.25
+    """an agent scoring in the bottom quantile copies one from the top quantile (exploit)"""
+    perturb: tuple[float, ...] = (0.8, 1.2)
+    """and multiplies that agent's lr and entropy coefficient by a factor drawn from these
+    (explore)"""
+
+    def validate(self) -> None:
+        finite_in("pbt", self, "quantile", 0.01, 0.5, "in [0.01, 0.5]")
+        ok = len(self.perturb) >= 1 and all(
+            isinstance(f, int | float) and 0 < f < 10 for f in self.perturb
+        )
+        require(ok, "pbt.perturb", "a non-empty list of factors in (0, 10)", self.perturb)
+
+
+@dataclass(frozen=True)
+class ExploitExplore:
+    """Rules: partners uniform over the other agents; the candidate (the agent of `slot`
+    after its training) replaces its parent there, then exploits and explores.
+
+    Kept in `population.extra`: `agent_scores` (slot → the mean team return of its agent's
+    hyperedges after its last training) and `agent_hyper` (slot → its lr and entropy
+    coefficient), keyed by the slot as a string."""
+
+    quantile: float
+    perturb: Sequence[float]
+    lr: float
+    entropy_coef: float
+
+    def setup(self, population: Population) -> None:
+        population.extra["agent_scores"] = {}
+        population.extra["agent_hyper"] = {
+            str(slot): {"lr": self.lr, "entropy_coef": self.entropy_coef}
+            for slot in population.slots.values()
+        }
+
+    def phi(self, population: Population, exclude_slot: int | None = None) -> dict[int, float]:
+        return Uniform().phi(population, exclude_slot)
+
+    def values(self, population: Population) -> dict[int, float | None]:
+        return Uniform().values(population)
+
+    def decide(
+        self, population: Population, slot: int | None, rng: np.random.Generator
+    ) -> Decision:
+        """The candidate replaces its parent in `slot`; its score is the mean return of its
+        hyperedges. Once every agent has a score, an agent in the bottom quantile takes the
+        weights and score of one drawn from the top quantile (`copied_from`) and that
+        agent's hyperparameters times a factor drawn from `perturb`; a copied candidate's
+        hyperedges are dropped, as they measured weights it no longer has."""
+        p, node = population, population.candidate
+        if node is None or slot is None:
+            raise ValueError("no candidate to decide on, or no slot it was trained from")
+        scores: dict[str, float] = p.extra["agent_scores"]
+        hyper: dict[str, dict[str, float]] = p.extra["agent_hyper"]
+        parent = p.slot_member(slot)
+        edges = [w for nodes, w in p.hyfog.weights() if node in nodes]
+        rank = rank_of(p.hyfog, node)
+        eta = centrality(p.hyfog)[node]
+        p.slots.pop(parent)
+        p.hyfog.remove_node(parent)
+        p.slots[node] = slot
+        scores[str(slot)] = float(np.mean(edges)) if edges else float("-inf")
+        copied = None
+        if len(scores) == len(p.slots):
+            k = max(1, int(len(p.slots) * self.quantile))
+            order = sorted(scores, key=lambda s: scores[s])
+            if str(slot) in order[:k] and str(slot) not in order[-k:]:
+                source = int(rng.choice(order[-k:]))
+                copied = p.slot_member(source)
+                scores[str(slot)] = scores[str(source)]
+                hyper[str(slot)] = {
+                    h: v * float(rng.choice(self.perturb)) for h, v in hyper[str(source)].items()
+                }
+                p.hyfog.remove_node(node)
+                p.hyfog.add_node(node)
+        p.candidate = None
+        return Decision(node, True, rank, eta, parent, slot, copied)
+
+
+class PBT(Method):
+    section = ("pbt", PBTConfig)
+
+    def rules(self, config: RunConfig) -> ExploitExplore:
+        o = config.oracle
+        return ExploitExplore(config.pbt.quantile, config.pbt.perturb, o.lr, o.entropy_coef)
+
+    def build_population(self, trainer: Trainer) -> Built:
+        return pretrain_jointly(trainer, 0.0, "jointly (PBT's start)")
+
+    def before_training(self, trainer: Trainer, g: int, oracle: Oracle) -> int:
+        """Generation g trains agent (g − 1) mod K: its weights go into the learner, which
+        trains with that agent's lr and entropy coefficient and a fresh optimizer."""
+        slots = ray.get(trainer.coord.slots.remote())
+        slot = (g - 1) % len(slots)
+        node = next(v for v, s in slots.items() if s == slot)
+        state = ray.get(trainer.coord.member_states.remote([node]))[node]
+        oracle.set_trained_weights({LEARNER: state})
+        hyper = ray.get(trainer.coord.agent_hyper.remote(slot))
+        oracle.reset_learner(hyper["lr"], hyper["entropy_coef"])
+        return slot
+
+    def verdict(self, config: RunConfig, decision: Decision) -> str:
+        return f"agent {decision.slot} is node {decision.candidate}" + (
+            f"; it exploits node {decision.copied_from} and explores lr and entropy"
+            if decision.copied_from is not None
+            else ""
+        )
+
+
+METHOD = PBT(
+    "pbt", "PBT: agents trained in turn with the others, exploit and explore (lr, entropy)"
+)

@@ -1,0 +1,34 @@
+"""The methods a run config may name: one line per method."""
+
+from __future__ import annotations
+
+from hola_ray.methods import fcp, hola, mep, pbt, sp
+from hola_ray.methods.base import Method
+from hola_ray.methods.config import METHODS, sections
+
+__all__ = ["METHODS", "register", "sections", "unregister"]
+
+
+def register(method: Method) -> Method:
+    """Make `method` a value a run config may name; its config section (if any) becomes a
+    section of every run config. Returns it."""
+    if method.name in METHODS and METHODS[method.name] is not method:
+        raise ValueError(f"a method named {method.name!r} is already registered")
+    if not method.name.isidentifier():
+        raise ValueError(f"a method's name is letters, digits and _ only: {method.name!r}")
+    METHODS[method.name] = method
+    return method
+
+
+def unregister(name: str) -> None:
+    """Forget a method registered for a while (a test's toy method)."""
+    METHODS.pop(name, None)
+
+
+register(hola.HOLA)
+register(hola.HOLA_R)
+register(hola.UNIFORM)
+register(sp.SP)
+register(fcp.METHOD)
+register(mep.METHOD)
+register(pbt.METHOD)

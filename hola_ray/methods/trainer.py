@@ -1,0 +1,477 @@
+"""The one trainer (SPEC §5): generations of Oracle → judge → coordinator.
+
+Every method (`hola_ray.methods.registry.METHODS`) runs this loop; it asks the method
+(`hola_ray.methods.base.Method`) where methods differ and has no branch on a method's name.
+Generation 0 builds the partner population (`Method.build_population`) and G_0; then each
+generation the Oracle trains the learner with partners as the coordinator's plan says (one
+call: slot → member and φ, drawn by the method's `Rules`), the Grapher weighs the
+learner's hyperedges and the coordinator accepts it into the population or not, as the
+method's `Rules` decide. A self-play method has no population: the Oracle seats the learner
+in every slot and the learner is judged by its own team's rollout. The driver only
+sequences the phases; the population lives in the coordinator actor, the hyperedge
+evaluations in member actors, the PPO in RLlib's env runners and learner. Every method
+leaves `learner.pt` (the latest learner) and `best.pt` with `best.json` (the generation
+whose learner scored best in its judging).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import ray
+from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+from hola_ray import interrupt
+from hola_ray.evaluation.metrics import TEAM, VALIDATED
+from hola_ray.evaluation.rollout import rollout
+from hola_ray.evaluation.stats import mean_and_se
+from hola_ray.evaluation.teams import play
+from hola_ray.methods.config import RunConfig
+from hola_ray.oracle import LEARNER, Oracle
+from hola_ray.policies.learned import MLPPolicy
+from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name, run_id
+from hola_ray.population.grapher import evaluate_edges
+from hola_ray.population.lock import RunLock
+from hola_ray.population.member import MemberPool
+from hola_ray.population.rundir import RunDir
+from hola_ray.population.state import EdgeResult, edge_seed
+
+_REPORTED = tuple((m.name, m.field) for m in TEAM)
+"""(metric name in metrics.csv, its field in an edge result or a rollout summary)"""
+
+
+class RunError(RuntimeError):
+    """A run cannot start or continue as asked (e.g. a run directory already in use)."""
+
+
+@dataclass
+class Trainer:
+    """Runs one training run (any method) in `run_dir` on the connected Ray cluster."""
+
+    config: RunConfig
+    run_dir: Path
+    progress: bool = True
+    lock: RunLock | None = None
+    """the run directory's lock, when the caller took it already (else `fit` takes it)"""
+    saved: Callable[[int], Any] | None = None
+    """called with g once generation g (and the files at the top) is on disk; and after a
+    resume has written those files again (the experiment mirrors a trial's folder with it)"""
+    adopt_from: tuple[Path, ...] = ()
+    """run directories whose generation 0 a fresh run takes instead of pre-training, when
+    one of them built it with the same `generation_zero_key` (an experiment's methods of
+    one seed that share MEP's population: the same G_0, trained once)"""
+
+    def __post_init__(self) -> None:
+        self.run = RunDir(self.run_dir)
+        self.name = run_id(str(self.run.root))
+        self.pool = MemberPool(self.config.env.to_dict(), run_name=self.name)
+        self._validators: list | None = None  # the validation teammates, loaded once
+        self._member_teams: dict[int, dict[str, float]] = {}  # node → its self-play figures
+
+    # ---- entry --------------------------------------------------------------------------
+    def fit(self) -> list[dict[str, Any]]:
+        """Train until `config.generations`; returns the metrics rows written this call.
+        Raises `RunDirLocked` before writing anything when another run holds the folder."""
+        lock = self.lock or RunLock(self.run_dir)
+        owned = not lock.held
+        note = lock.acquire()
+        if note:
+            self._say(note)
+        try:
+            return self._fit()
+        finally:
+            if owned:
+                lock.release()
+
+    def _fit(self) -> list[dict[str, Any]]:
+        c, method = self.config, self.config.strategy
+        self.run.create(c.to_yaml())
+        self._adopt()
+        here = ray.get_runtime_context().get_node_id()
+        self.coord = Coordinator.options(
+            name=coordinator_name(str(self.run_dir)),
+            namespace=NAMESPACE,
+            scheduling_strategy=NodeAffinitySchedulingStrategy(node_id=here, soft=False),
+        ).remote(
+            str(self.run.root.resolve()),
+            method.rules(c),
+            c.population,
+            c.l,
+            c.seed,
+            c.grapher.edges_per_learner,
+            c.method,
+        )
+        rows: list[dict[str, Any]] = []
+        oracle = None
+        self._validation_teammates()  # a missing or refused validation set fails at once
+        try:
+            last = ray.get(self.coord.last_completed.remote())
+            if last is None and method.self_play:
+                last = 0  # no population to pre-train: generation 1 is the first
+            elif last is None:
+                rows.append(self._pretrain())
+                last = 0
+                self._saved(0)
+            else:
+                self._say(f"resuming after generation {last} in {self.run.root}")
+                self._catch_up(last)
+                self._saved(last)
+            if last < self.config.generations:
+                oracle = make_oracle(c)
+                learner = self.run.load_learner_state(last)
+                if learner is not None:
+                    oracle.set_trained_weights({LEARNER: learner})
+                for g in range(last + 1, self.config.generations + 1):
+                    rows.append(self._generation(g, oracle))
+                    self._saved(g)
+        finally:
+            if oracle is not None:
+                oracle.stop()
+            self.pool.shutdown()
+            ray.get(self.coord.close.remote())
+            ray.kill(self.coord)
+        return rows
+
+    # ---- generation 0 -------------------------------------------------------------------
+    def _adopt(self) -> None:
+        """A fresh run whose generation 0 another run already built (`adopt_from`, the same
+        `generation_zero_key`) takes it instead of pre-training again."""
+        key = self.config.generation_zero_key()
+        if key is None or self.run.last_completed() is not None:
+            return
+        for folder in self.adopt_from:
+            donor = RunDir(folder)
+            marker = donor.generation(0) / KEY_FILE
+            if Path(folder).resolve() == self.run.root.resolve() or not marker.is_file():
+                continue
+            if marker.read_text() != key:
+                continue
+            self.run.adopt_generation_zero(donor)
+            self._say(f"gen 0: adopted from {donor.root.name} (the same pre-training and G_0)")
+            return
+
+    def _pretrain(self) -> dict[str, Any]:
+        c = self.config
+        self.coord.set_phase.remote("pretrain")
+        start = time.perf_counter()
+        built = c.strategy.build_population(self)
+        states_list, stats = built.states, built.stats
+        exports = [c.export(s) for s in states_list]
+        pretrain_s = time.perf_counter() - start
+        ray.get(self.coord.init_population.remote(exports, states_list))
+
+        self.coord.set_phase.remote("grapher")
+        results, grapher = self._grapher(0)
+        self.coord.set_phase.remote("coordinator")
+        start = time.perf_counter()
+        ray.get(self.coord.record.remote(results))
+        metrics = {
+            "env_steps": 0,
+            **self._population_as_team(0),
+            "pretrain_env_steps": stats.env_steps,
+            "pretrain_s": round(pretrain_s, 2),
+            "pretrain_env_steps_per_s": round(stats.env_steps_per_s, 1),
+            **{f"pretrain_{k}": round(v, 4) for k, v in stats.spread.items()},
+            **_edge_summary("population", results),
+            **grapher,
+            "coordinator_s": round(time.perf_counter() - start, 4),
+        }
+        row = ray.get(self.coord.commit.remote(0, metrics, None, None, stats.iteration_log))
+        key = c.generation_zero_key()
+        if key is not None:  # what another run of the same pre-training may adopt
+            (self.run.generation(0) / KEY_FILE).write_text(key)
+        self._say(
+            f"gen 0: {built.said} in {pretrain_s:.0f}s; "
+            f"G_0 success {row['population_success']:.0%}, "
+            f"return {row['population_return']:.1f}"
+        )
+        return row
+
+    # ---- generations 1.. ----------------------------------------------------------------
+    def _generation(self, g: int, oracle: Oracle) -> dict[str, Any]:
+        c, method = self.config, self.config.strategy
+        prev = ray.get(self.coord.view.remote())["last_metrics"]
+        self.coord.set_phase.remote("oracle")
+        start = time.perf_counter()
+        slot = method.before_training(self, g, oracle)
+        if not method.self_play:
+            oracle.seat(
+                ray.get(self.coord.plan.remote(slot)),
+                lambda nodes: ray.get(self.coord.member_states.remote(nodes)),
+                salt=g,
+            )
+        stats = oracle.train(c.oracle.env_steps, desc=f"gen {g} oracle", progress=self.progress)
+        learner_state = oracle.weights([LEARNER])[LEARNER]
+        export = oracle.export_state(learner_state)
+        oracle_s = time.perf_counter() - start
+
+        if method.self_play:
+            self.coord.set_phase.remote("self-play evaluation")
+            judged, decision = self._self_play_eval(g, export), None
+        else:
+            judged, decision = self._judge_in_population(g, export, learner_state, slot)
+        self.coord.set_phase.remote("validation")
+        judged |= self._validate(export) | self._population_as_team(g)
+        metrics = {
+            "wall_s": round(time.perf_counter() - start, 2),
+            "env_steps": int(prev.get("env_steps", 0)) + stats.env_steps,
+            "learner_samples": int(prev.get("learner_samples", 0)) + stats.learner_samples,
+            "gradient_steps": int(prev.get("gradient_steps", 0)) + stats.gradient_steps,
+            "oracle_s": round(oracle_s, 2),
+            "oracle_env_steps_per_s": round(stats.env_steps_per_s, 1),
+            "oracle_sampled_steps_per_s": round(stats.sampled_steps_per_s, 1),
+            "oracle_sample_s": round(stats.sample_s, 2),
+            "oracle_learn_s": round(stats.learn_s, 2),
+            "oracle_learner_return": stats.module_return.get(LEARNER, float("nan")),
+            **{k: round(v, 4) for k, v in stats.spread.items()},
+            **judged,
+        }
+        row = ray.get(
+            self.coord.commit.remote(
+                g, metrics, learner_state, decision, stats.iteration_log, export
+            )
+        )
+        # best.pt first: learner.json, written last, says the generation is wholly saved
+        best = self.run.keep_best(g, row, export)
+        self._save_learner(g, export, None if decision is None else decision.to_dict())
+        if decision is None:
+            verdict = (
+                "best so far" if best else f"best stays generation {self.run.best_generation()}"
+            )
+        else:
+            verdict = method.verdict(c, decision)
+        self._say(
+            f"gen {g}: learner success {row['learner_success']:.0%} ± "
+            f"{row['learner_success_se']:.0%}, collision {row['learner_collision']:.0%}, "
+            f"return {row['learner_return']:.1f}; {verdict}; std {row.get('std_median', 0):.2f}; "
+            f"oracle {oracle_s:.0f}s ({stats.env_steps_per_s:.0f} steps/s)"
+        )
+        return row
+
+    def _save_learner(self, g: int, export: dict[str, Any], decision: dict | None) -> None:
+        """learner.pt and learner.json: generation g's learner, and whether it joined."""
+        accepted = decision is not None and bool(decision["accepted"])
+        self.run.save_learner(export)
+        self.run.save_learner_info(
+            {
+                "generation": g,
+                "method": self.config.method,
+                "in_population": None if decision is None else accepted,
+                "node": decision["candidate"] if accepted else None,
+                "population": "population/members.json" if decision is not None else None,
+            }
+        )
+
+    def _catch_up(self, last: int) -> None:
+        """A run killed after committing generation `last` but before writing the files
+        at the top of its directory: best.pt and best.json from the best of the completed
+        generations, then learner.pt and learner.json (the last written, so a learner.json
+        of generation `last` says all of them are) from that generation's folder."""
+        if last < 1 or not self.run.learner_state(last).is_file():
+            return
+        best = self.run.best_of_completed()
+        if best is not None and (self.run.best_generation() != best or not self.run.best.is_file()):
+            self.run.best_info.unlink(missing_ok=True)
+            state = self.run.load_learner_state(best)
+            self.run.keep_best(
+                best, self.run.read_json(best, "metrics.json"), self.config.export(state)
+            )
+            self._say(f"best.pt written again from generation {best}")
+        if self.run.learner_generation() != last:
+            state = self.run.load_learner_state(last)
+            decision = self.run.read_json(last, "state.json")["decision"]
+            self._save_learner(last, self.config.export(state), decision)
+            self._say(f"learner.pt written again from generation {last}")
+
+    def _judge_in_population(self, g: int, export, learner_state, slot: int | None = None):
+        """The Grapher weighs the learner's hyperedges; the coordinator decides (pbt: on
+        the agent of `slot`)."""
+        self.coord.set_phase.remote("grapher")
+        candidate = ray.get(self.coord.propose.remote(export, learner_state))
+        results, grapher = self._grapher(g)
+        self.coord.set_phase.remote("coordinator")
+        start = time.perf_counter()
+        ray.get(self.coord.record.remote(results))
+        decision = ray.get(self.coord.decide.remote(slot, g))
+        if not decision.accepted or decision.copied_from is not None:
+            self.pool.remove(candidate)  # gone, or its weights are another member's now
+        if decision.replaced is not None:
+            self.pool.remove(decision.replaced)
+        judged = {
+            **_edge_summary("learner", results),
+            **grapher,
+            "candidate": candidate,
+            "accepted": int(decision.accepted),
+            "rank": decision.rank,
+            "eta": decision.eta,
+            "replaced": -1 if decision.replaced is None else decision.replaced,
+            "copied_from": -1 if decision.copied_from is None else decision.copied_from,
+            "coordinator_s": round(time.perf_counter() - start, 4),
+        }
+        return judged, decision
+
+    def _self_play_eval(self, g: int, export) -> dict[str, Any]:
+        """Self-play: the exported learner in every slot, `grapher.episodes_per_edge` episodes."""
+        c = self.config
+        start = time.perf_counter()
+        team = [MLPPolicy(c.env, export)] * c.env.n_pursuers
+        episodes = c.grapher.episodes_per_edge
+        result = rollout(c.env, team, episodes, seed=edge_seed(c.seed, g, ()))
+        summary = result.summary()
+        judged = {"learner_episodes": episodes, "eval_s": round(time.perf_counter() - start, 2)}
+        for name, key in _REPORTED:
+            judged[f"learner_{name}"] = round(summary[key], 4)
+            judged[f"learner_{name}_se"] = round(summary[f"{key}_se"], 4)
+        return judged
+
+    def _validate(self, export) -> dict[str, float]:
+        """The learner with the validation teammates (`validation.pool`): in a random seat,
+        its teammates drawn per episode, the same episodes every generation. best.pt is the
+        generation that does best here, for every method."""
+        c = self.config
+        if not c.validation.enabled:
+            return {}
+        start = time.perf_counter()
+        played = play(
+            MLPPolicy(c.env, export),
+            self._validation_teammates(),
+            c.env,
+            c.validation.episodes,
+            [VALIDATION_SEED + c.seed],
+        )
+        out: dict[str, float] = {}
+        for name in VALIDATED:
+            mean, se = mean_and_se(played[name])
+            out[f"val_{name}"], out[f"val_{name}_se"] = round(mean, 4), round(se, 4)
+        out["val_s"] = round(time.perf_counter() - start, 2)
+        return out
+
+    def _validation_teammates(self) -> list:
+        """The validation set's members for this run's scenario (loaded once; refused if
+        it shares a member with an evaluation pool: `hola_ray.evaluation.pools.load_validation`)."""
+        c = self.config
+        if self._validators is None and c.validation.enabled:
+            from hola_ray.evaluation.pools import load_validation
+
+            self._validators = list(load_validation(c.validation.pool, c.env).values())
+        return self._validators or []
+
+    def _population_as_team(self, g: int) -> dict[str, float]:
+        """Can the population pursue? Each member as a team of its own copies (its self-play
+        success, collision and the share of its seats that crashed; measured once per
+        node, the mean and the weakest over members), and teams of distinct members drawn
+        from the population (`population_team_*`)."""
+        c = self.config
+        if c.strategy.self_play:  # no population
+            return {}
+        nodes = sorted(ray.get(self.coord.slots.remote()))
+        exports = ray.get(self.coord.exports.remote(nodes))
+        episodes, n_p = c.grapher.episodes_per_edge, c.env.n_pursuers
+        for v in nodes:
+            if v not in self._member_teams:
+                result = rollout(
+                    c.env,
+                    [MLPPolicy(c.env, exports[v])] * n_p,
+                    episodes,
+                    seed=edge_seed(c.seed, 0, (v,) * n_p),
+                )
+                self._member_teams[v] = _team_figures(result)
+        own = [self._member_teams[v] for v in nodes]
+        out = {
+            f"members_{k}": round(float(np.mean([f[k] for f in own])), 4)
+            for k in ("success", "collision", "crash")
+        }
+        out["members_success_min"] = round(min(f["success"] for f in own), 4)
+        rng = np.random.default_rng([c.seed, g, 3])
+        teams = np.stack(
+            [rng.choice(len(nodes), n_p, replace=len(nodes) < n_p) for _ in range(episodes)]
+        )
+        policies = [MLPPolicy(c.env, exports[v]) for v in nodes]
+        mixed = rollout(c.env, policies, episodes, assignment=teams, seed=edge_seed(c.seed, g, ()))
+        out |= {f"population_team_{k}": round(v, 4) for k, v in _team_figures(mixed).items()}
+        return out
+
+    def _grapher(self, g: int) -> tuple[list[EdgeResult], dict[str, float]]:
+        c = self.config
+        edges = ray.get(self.coord.edges_to_evaluate.remote(g))
+        nodes = sorted({v for e in edges for v in e})
+        exports = ray.get(self.coord.exports.remote(nodes))
+        actors = self.pool.ensure(exports)
+        results, stats = evaluate_edges(
+            edges,
+            actors,
+            ray.put(exports),
+            c.grapher.episodes_per_edge,
+            seed_of=lambda e: edge_seed(c.seed, g, e),
+            workers=c.grapher.workers,
+            desc=f"gen {g} grapher",
+            progress=self.progress,
+        )
+        return results, {
+            "grapher_edges": stats.edges,
+            "grapher_s": round(stats.wall_s, 2),
+            "grapher_episodes_per_s": round(stats.episodes_per_s, 1),
+            "grapher_retries": stats.retries,
+        }
+
+    def _saved(self, g: int) -> None:
+        interrupt.check()
+        if self.saved is not None:
+            self.saved(g)
+
+    def _say(self, text: str) -> None:
+        print(text, flush=True)
+
+
+def make_oracle(config: RunConfig, seed: int | None = None) -> Oracle:
+    """The Oracle a run of `config` trains its learner with, seated as its method says."""
+    seating = config.strategy.seating(config)
+    return Oracle(config.env, config.oracle, seating, config.seed if seed is None else seed)
+
+
+KEY_FILE = "generation_zero_key.json"
+"""in a generation-0 folder: the `generation_zero_key` it was built with"""
+
+VALIDATION_SEED = 90_001
+"""Validation episodes' seeds: VALIDATION_SEED + the run's seed, apart from the zero-shot
+evaluation's (0, 1, 2 …) and Table II's"""
+
+
+def _team_figures(result) -> dict[str, float]:
+    """Success, collision and the share of seats that crashed, of a rollout."""
+    return {
+        "success": float(result.success.mean()),
+        "collision": float(result.collision.mean()),
+        "crash": float(result.crashed.mean()),
+    }
+
+
+def _edge_summary(prefix: str, results: list[EdgeResult]) -> dict[str, float]:
+    """Episode-weighted means over hyperedges, with the standard error across hyperedges."""
+    n = np.array([r.episodes for r in results], dtype=np.float64)
+    out: dict[str, float] = {}
+    for name, key in _REPORTED:
+        x = np.array([getattr(r, key) for r in results], dtype=np.float64)
+        mean = float((x * n).sum() / n.sum())
+        se = float(x.std(ddof=1) / np.sqrt(x.size)) if x.size > 1 else 0.0
+        out[f"{prefix}_{name}"] = round(mean, 4)
+        out[f"{prefix}_{name}_se"] = round(se, 4)
+    return out
+
+
+def check_run_dir(run_dir: Path, resume: bool) -> None:
+    """Refuse to start a fresh run over a run directory that has generations."""
+    run = RunDir(run_dir)
+    if resume:
+        if not run.config.is_file():
+            raise RunError(f"--resume {run_dir}: no config.yaml there, not a run directory")
+    elif run.completed():
+        raise RunError(
+            f"{run_dir} already holds generations {run.completed()}; "
+            f"continue it with --resume {run_dir} or pick another --out"
+        )

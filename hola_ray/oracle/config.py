@@ -1,0 +1,168 @@
+"""The Oracle's own configuration (the `oracle` section of a run config) and how it seats
+modules: what the Oracle needs and nothing of the method that drives it."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from hola_ray.env.checks import finite_in, positive_int, require
+from hola_ray.env.config import PursuitConfig
+from hola_ray.env.layout import ObsLayout
+from hola_ray.policies.learned import DISTRIBUTIONS, export_from_rllib
+
+SAMPLERS = ("batched", "pettingzoo")
+"""oracle.sampler: how the Oracle's env runners sample (OracleConfig.sampler)."""
+BUDGETS = ("env_steps", "learner_samples")
+"""oracle.budget: what the Oracle's budget counts."""
+
+
+@dataclass(frozen=True)
+class OracleConfig:
+    """The multi-agent PPO that trains the learner each generation (paper Appendix)."""
+
+    env_steps: int = 1_000_000
+    """the Oracle's budget for one generation, counted as `budget` says"""
+    train_batch: int = 1024
+    """the size of one PPO update's batch, counted as `budget` says"""
+    budget: str = "env_steps"
+    """what `env_steps` and `train_batch` count: env_steps (environment steps, the paper's
+    budget: self-play's learner then learns from every seat of a step, a single learner from
+    one, a third of the data at 3 pursuers) or learner_samples (the trained module's own
+    transitions, one per seat it plays per step: every method's learner consumes the same
+    number and takes the same number of gradient steps; a self-play batch then spans a third
+    of the environment steps)"""
+    minibatch: int = 256
+    """SGD minibatch size (agent steps of the learner)"""
+    epochs: int = 20
+    """PPO epochs over each train batch"""
+    lr: float = 3e-4
+    """Adam learning rate"""
+    gamma: float = 0.99
+    """reward discount"""
+    gae_lambda: float = 0.95
+    """GAE λ"""
+    vf_coef: float = 1.0
+    """value-loss coefficient"""
+    entropy_coef: float = 0.01
+    """entropy-bonus coefficient"""
+    action_dist: str = "beta"
+    """the policy's action distribution: beta (bounded, hola_ray/oracle/distribution.py) or
+    gaussian (RLlib's default; unbounded, its samples clip at the Box)"""
+    proximity_length: float = 0.15
+    """ρ, metres: the networks also read exp(−d/ρ) of the obstacle and teammate distances
+    (hola_ray/policies/learned.py, proximity_features); 0 = the raw observation only"""
+    clip: float = 0.2
+    """PPO clip parameter"""
+    kl_coef: float = 0.0
+    """initial coefficient of RLlib's adaptive KL penalty (RLlib's default 0.2); 0 = off,
+    the clipped objective alone, as in the PPO paper and CleanRL"""
+    vf_clip: float = 1e6
+    """squared value errors above this give no gradient (RLlib's vf_clip_param, default
+    10: with capture and collision rewards of ±10 it silenced most of the critic's errors)"""
+    grad_clip: float = 0.5
+    """global gradient-norm clip (CleanRL's and SB3's 0.5); 0 = none (RLlib's default)"""
+    hidden: tuple[int, ...] = (256, 256)
+    """hidden layer widths of the actor and the critic (tanh)"""
+    env_runners: int = 1
+    """RLlib env runner actors; on 2 CPUs one runner with many vector envs samples fastest"""
+    envs_per_runner: int = 16
+    """vectorised environments in each env runner"""
+    gpus_per_learner: float = 0.0
+    """GPUs for the PPO learner (RLlib's num_gpus_per_learner); 0 = the learner runs on the
+    CPU in the driver. A GPU speeds up the paper's 256×256 update; sampling stays on CPUs"""
+    horizon_terminates: bool = False
+    """true reproduces RLlib's own marking, for ablations only: an episode cut at the
+    horizon counts as terminated and nothing bootstraps V(s_T) (the default: truncated,
+    hola_ray/env/horizon.py)"""
+    sampler: str = "batched"
+    """how env runners sample: batched (hola_ray/oracle/batched_runner.py: every vector env
+    in one compiled step, one forward pass per module, episodes built in bulk) or
+    pettingzoo (RLlib's MultiAgentEnvRunner over the PettingZoo env, step by step)"""
+
+    def validate(self) -> None:
+        s = "oracle"
+        positive_int(s, self, "env_steps", "train_batch", "minibatch", "epochs")
+        positive_int(s, self, "envs_per_runner")
+        positive_int(s, self, "env_runners", minimum=0)
+        require(
+            self.minibatch <= self.train_batch,
+            "oracle.minibatch",
+            f"<= oracle.train_batch ({self.train_batch})",
+            self.minibatch,
+        )
+        finite_in(s, self, "lr", 1e-8, 1.0, "in [1e-8, 1]")
+        finite_in(s, self, "gamma", 0.0, 1.0, "in [0, 1]")
+        finite_in(s, self, "gae_lambda", 0.0, 1.0, "in [0, 1]")
+        finite_in(s, self, "vf_coef", 0.0, 1e3, "in [0, 1000]")
+        finite_in(s, self, "entropy_coef", 0.0, 1.0, "in [0, 1]")
+        finite_in(s, self, "clip", 1e-3, 1.0, "in [0.001, 1]")
+        finite_in(s, self, "kl_coef", 0.0, 10.0, "in [0, 10]")
+        finite_in(s, self, "vf_clip", 1e-3, 1e12, "in [0.001, 1e12]")
+        finite_in(s, self, "grad_clip", 0.0, 1e6, "in [0, 1e6] (0 = none)")
+        finite_in(s, self, "proximity_length", 0.0, 10.0, "in [0, 10] (0 = off)")
+        finite_in(s, self, "gpus_per_learner", 0.0, 64.0, "in [0, 64] (0 = CPU)")
+        require(
+            self.budget in BUDGETS, "oracle.budget", f"one of {', '.join(BUDGETS)}", self.budget
+        )
+        require(
+            isinstance(self.horizon_terminates, bool),
+            "oracle.horizon_terminates",
+            "true or false",
+            self.horizon_terminates,
+        )
+        require(
+            self.sampler in SAMPLERS,
+            "oracle.sampler",
+            f"one of {', '.join(SAMPLERS)}",
+            self.sampler,
+        )
+        require(
+            self.action_dist in DISTRIBUTIONS,
+            "oracle.action_dist",
+            f"one of {', '.join(DISTRIBUTIONS)}",
+            self.action_dist,
+        )
+        ok = len(self.hidden) >= 1 and all(isinstance(h, int) and h >= 1 for h in self.hidden)
+        require(ok, "oracle.hidden", "a non-empty list of positive layer widths", self.hidden)
+
+    def model_features(self, env: PursuitConfig) -> dict[str, Any] | None:
+        """The learned policies' proximity features ({"indices", "gain"}), or None."""
+        if self.proximity_length == 0:
+            return None
+        return {
+            "indices": ObsLayout.from_config(env).proximity,
+            "gain": env.obs_distance_scale / self.proximity_length,
+        }
+
+    def export(self, state: Mapping[str, Any], env: PursuitConfig) -> dict[str, Any]:
+        """The plain-torch export (`MLPPolicy`) of an RLlib module state trained under this
+        config, with the scenario it was trained in."""
+        export = export_from_rllib(
+            state, activation="tanh", dist=self.action_dist, features=self.model_features(env)
+        )
+        return export | {"scenario": env.to_dict()}
+
+
+@dataclass(frozen=True)
+class Seating:
+    """Who the Oracle's modules are and where they sit: a learner beside `partners` frozen
+    partner modules drawn by φ, the learner alone in every seat (self-play, `partners` 0),
+    or `mep_members` members trained jointly with the population-entropy bonus `mep_alpha`
+    (MEP pre-training; α 0 is plain joint training)."""
+
+    partners: int = 0
+    """frozen partner modules `member_0` … (one per population slot); 0 = self-play"""
+    mep_members: int = 0
+    """> 0: MEP pre-training of that many members, every seat a member"""
+    mep_alpha: float = 0.0
+    """α of MEP's entropy bonus −log π̄(a|s)"""
+
+    @property
+    def mep(self) -> bool:
+        return self.mep_members > 0
+
+    @property
+    def self_play(self) -> bool:
+        return not self.mep and self.partners == 0

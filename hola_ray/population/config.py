@@ -1,0 +1,64 @@
+"""The population's and the Grapher's configuration (the `population` and `grapher`
+sections of a run config)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hola_ray.env.checks import finite_in, positive_int, require
+
+
+@dataclass(frozen=True)
+class PopulationConfig:
+    """The population that the HyFoG describes (SPEC §4–5)."""
+
+    max_size: int = 10
+    """hypergraph size: most members in the population"""
+    initial_size: int = 4
+    """members pre-trained with MEP to build G_0"""
+    top_m: int = 3
+    """the learner joins when its η rank is within the top m (the approximate oracle)"""
+    phi_shift: float = 0.1
+    """φ = normalised 1/(x − x_min + shift·(x_max − x_min)), x the node values"""
+    rank_beta: float = 3.0
+    """β of MEP's prioritised partner sampling p ∝ rank^β (method mep)"""
+
+    def validate(self, l: int) -> None:  # noqa: E741 - the paper's l
+        s = "population"
+        positive_int(s, self, "max_size", "initial_size", "top_m")
+        require(
+            self.max_size >= l,
+            "population.max_size (the hypergraph size)",
+            f">= l = env.n_pursuers = {l}",
+            self.max_size,
+        )
+        require(
+            l <= self.initial_size <= self.max_size,
+            "population.initial_size",
+            f"in [l = {l}, population.max_size = {self.max_size}]",
+            self.initial_size,
+        )
+        require(
+            self.top_m <= self.max_size,
+            "population.top_m",
+            f"<= population.max_size ({self.max_size})",
+            self.top_m,
+        )
+        finite_in(s, self, "phi_shift", 1e-6, 10.0, "in [1e-6, 10]")
+        finite_in(s, self, "rank_beta", 0.0, 100.0, "in [0, 100]")
+
+
+@dataclass(frozen=True)
+class GrapherConfig:
+    """How the Grapher weighs hyperedges by simulation."""
+
+    episodes_per_edge: int = 32
+    """evaluation episodes behind each hyperedge weight"""
+    edges_per_learner: int = 0
+    """(l − 1)-sets of members sampled for the learner's hyperedges; 0 = every one"""
+    workers: int = 2
+    """hyperedge evaluations in flight at once (member actors busy at a time)"""
+
+    def validate(self) -> None:
+        positive_int("grapher", self, "episodes_per_edge", "workers")
+        positive_int("grapher", self, "edges_per_learner", minimum=0)
