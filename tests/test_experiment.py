@@ -231,3 +231,13 @@ def test_a_variant_is_a_named_method_with_its_own_overrides(tmp_path):
         path.write_text(yaml.safe_dump(config | {"methods": methods, "evaluation": {}}))
         with pytest.raises(ConfigError, match=message):
             Experiment.from_yaml(path)
+
+
+def test_a_pool_named_by_its_folder_is_the_same_pool():
+    """An experiment's `evaluation.pools` may name a pool folder: it loads under its
+    folder's name (as `evaluate` labels it) and gives the named pool's reference returns."""
+    from hola_ray.experiment.tasks import _reference
+
+    settings = {"cell_episodes": 1, "seeds": [0]}
+    by_folder = _reference(str(ROOT / "pools" / "hot"), settings, 2)
+    np.testing.assert_array_equal(by_folder, _reference("hot", settings, 2))

@@ -80,12 +80,18 @@ def load_partner(spec: str, config: PursuitConfig) -> tuple[str, Any]:
     return getattr(partner, "name", attr), partner
 
 
+def pool_label(name: str) -> str:
+    """How a pool is named in results: hot, het, or a pool folder's last part."""
+    return name if name in POOLS else Path(name).name
+
+
 def pools(names: Sequence[str], partners: Sequence[str], config: PursuitConfig):
-    """Pool name → {member id → policy}, for --pool names/folders and the --partner pool."""
+    """Pool label (`pool_label`) → {member id → policy}, for --pool names/folders and the
+    --partner pool."""
     out: dict[str, dict[str, Any]] = {}
     for name in names:
         try:
-            out[Path(name).name if name not in POOLS else name] = load_pool(name, config)
+            out[pool_label(name)] = load_pool(name, config)
         except PoolError as err:
             raise EvaluationError(str(err)) from err
     if partners:

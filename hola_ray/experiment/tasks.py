@@ -91,11 +91,11 @@ def _run_trial(
 def _reference(pool: str, settings: dict[str, Any], n_evaders: int) -> np.ndarray:
     """A pool's reference returns for the BR-Prox score: computed once, for every trial."""
     from hola_ray.env.config import PursuitConfig
-    from hola_ray.evaluation.players import pools
+    from hola_ray.evaluation.players import pool_label, pools
     from hola_ray.evaluation.zero_shot import cell_returns
 
     config = PursuitConfig(n_evaders=n_evaders)
-    members = list(pools([pool], [], config)[pool].values())
+    members = list(pools([pool], [], config)[pool_label(pool)].values())
     return cell_returns(members, members, config, settings["cell_episodes"], settings["seeds"])
 
 
@@ -107,7 +107,7 @@ def _evaluate_trial(
     import tempfile
 
     from hola_ray.env.config import PursuitConfig
-    from hola_ray.evaluation.players import load_learner, pools
+    from hola_ray.evaluation.players import load_learner, pool_label, pools
     from hola_ray.evaluation.zero_shot import evaluate_learner
 
     config = PursuitConfig(n_evaders=n_evaders)
@@ -119,7 +119,7 @@ def _evaluate_trial(
     return {
         pool: evaluate_learner(
             policy,
-            list(members[pool].values()),
+            list(members[pool_label(pool)].values()),
             references[pool],
             config,
             settings["episodes"],
