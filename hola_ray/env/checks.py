@@ -39,12 +39,25 @@ def require(ok: bool, name: str, allowed: str, value: Any) -> None:
         raise ConfigError(f"{name} must be {allowed}, got {value!r}", name.split(" (")[0])
 
 
-def positive_int(section: str, obj: Any, *names: str, minimum: int = 1) -> None:
-    """`require` each field of `obj` to be an integer >= `minimum` (not a bool)."""
+def positive_int(
+    section: str, obj: Any, *names: str, minimum: int = 1, maximum: int | None = None
+) -> None:
+    """`require` each field of `obj` to be an integer >= `minimum` (not a bool) and, when
+    `maximum` is given, at most that (a size past it is a typo, not a run)."""
     for name in names:
         value = getattr(obj, name)
-        ok = isinstance(value, int) and not isinstance(value, bool) and value >= minimum
-        require(ok, f"{section}.{name}", f"an integer >= {minimum}", value)
+        is_int = isinstance(value, int) and not isinstance(value, bool)
+        if is_int and maximum is not None and value > maximum:
+            require(False, f"{section}.{name}", f"an integer in [{minimum}, {maximum:,}]", value)
+        require(is_int and value >= minimum, f"{section}.{name}", f"an integer >= {minimum}", value)
+
+
+def widths(name: str, value: Any, allow_empty: bool = False) -> None:
+    """`require` a list of hidden-layer widths: at most 16 layers of 1 … 65,536 units."""
+    ok = (allow_empty or len(value) > 0) and len(value) <= 16
+    ok = ok and all(isinstance(h, int) and not isinstance(h, bool) for h in value)
+    ok = ok and all(1 <= h <= 65_536 for h in value)
+    require(ok, name, "a list of at most 16 layer widths in [1, 65,536]", value)
 
 
 def finite_in(section: str, obj: Any, name: str, low: float, high: float, allowed: str) -> None:

@@ -259,9 +259,12 @@ class PursuitConfig:
             f"> the largest observable distance reading ({diagonal:.3f}), so it is unambiguous",
             self.unobserved_distance,
         )
-        for name in ("n_pursuers", "n_evaders", "horizon"):
+        for name in ("n_pursuers", "n_evaders"):
             value = getattr(self, name)
             require(isinstance(value, int) and value >= 1, name, "an integer >= 1", value)
+        value = self.horizon
+        require(isinstance(value, int) and value >= 1, "horizon", "an integer >= 1", value)
+        require(value <= 10**6, "horizon", "an integer in [1, 1,000,000]", value)
         for i, rect in enumerate(self.obstacles):
             name = f"obstacles[{i}]"
             require(len(rect) == 4, name, "(centre_x, centre_y, width, height)", rect)

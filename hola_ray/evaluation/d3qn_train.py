@@ -25,9 +25,8 @@ from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 from ray.tune.registry import register_env
 
-from hola_ray.env.config import (
+from hola_ray.env.checks import (
     ConfigError,
-    PursuitConfig,
     checked,
     consume_fields,
     finite_in,
@@ -35,7 +34,9 @@ from hola_ray.env.config import (
     located,
     positive_int,
     require,
+    widths,
 )
+from hola_ray.env.config import PursuitConfig
 from hola_ray.env.horizon import horizon_is_truncation
 from hola_ray.env.layout import ObsLayout
 from hola_ray.env.pettingzoo_env import PursuitEnv
@@ -84,14 +85,18 @@ class D3QNSettings:
 
     def __post_init__(self) -> None:
         s = "d3qn"
-        positive_int(s, self, "env_steps", "batch", "buffer", "envs", "fragment", "n_step")
-        positive_int(s, self, "decision_interval", "validate_episodes", "target_update")
-        positive_int(s, self, "epsilon_steps", "learning_starts", "validate_every", minimum=0)
-        for name in ("hidden", "head_hidden"):
-            widths = getattr(self, name)
-            ok = all(isinstance(h, int) and not isinstance(h, bool) and h >= 1 for h in widths)
-            ok = ok and (name == "head_hidden" or len(widths) > 0)
-            require(ok, f"d3qn.{name}", "a list of positive layer widths", widths)
+        big = 10**11
+        positive_int(s, self, "env_steps", "target_update", maximum=big)
+        positive_int(s, self, "batch", "fragment", maximum=10**7)
+        positive_int(s, self, "buffer", maximum=10**9)
+        positive_int(s, self, "envs", maximum=65_536)
+        positive_int(s, self, "n_step", "decision_interval", maximum=10_000)
+        positive_int(s, self, "validate_episodes", maximum=10**6)
+        positive_int(
+            s, self, "epsilon_steps", "learning_starts", "validate_every", minimum=0, maximum=big
+        )
+        widths("d3qn.hidden", self.hidden)
+        widths("d3qn.head_hidden", self.head_hidden, allow_empty=True)
         finite_in(s, self, "lr", 1e-8, 1.0, "in [1e-8, 1]")
         for name in ("gamma", "alpha", "beta", "epsilon_start", "epsilon_end"):
             finite_in(s, self, name, 0.0, 1.0, "in [0, 1]")

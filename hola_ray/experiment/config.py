@@ -103,7 +103,8 @@ class Experiment:
         if not isinstance(overrides, Mapping):
             raise ConfigError(f"overrides must be a mapping, got {overrides!r}", "overrides")
         parallel = checked(int, raw.get("parallel", 0), "parallel")
-        require(parallel >= 0, "parallel", "an integer >= 0 (0: every trial at once)", parallel)
+        ok = 0 <= parallel <= 100_000
+        require(ok, "parallel", "an integer in [0, 100,000] (0: every trial at once)", parallel)
         exp = cls(
             base=base,
             methods={m: dict(o or {}) for m, o in methods.items()},
@@ -158,7 +159,7 @@ def _evaluation(raw: Any, methods: set[str]) -> EvaluationSettings:
     ev = consume_fields(EvaluationSettings, raw, "evaluation.")
     ev = {k: _tuples(v) for k, v in ev.items()}
     settings = EvaluationSettings(**ev)
-    positive_int("evaluation", settings, "episodes", "cell_episodes")
+    positive_int("evaluation", settings, "episodes", "cell_episodes", maximum=10**6)
     ok = len(settings.seeds) > 0 and min(settings.seeds) >= 0
     require(ok, "evaluation.seeds", "a non-empty list of integers >= 0", list(settings.seeds))
     require(len(settings.pools) > 0, "evaluation.pools", "a non-empty list", settings.pools)

@@ -67,7 +67,7 @@ class PretrainConfig:
     """α: weight of the population mean policy's entropy bonus −log π̄(a|s), in [0, 1]"""
 
     def validate(self) -> None:
-        positive_int("pretrain", self, "env_steps")
+        positive_int("pretrain", self, "env_steps", maximum=10**11)
         finite_in("pretrain", self, "alpha", 0.0, 1.0, "in [0, 1]")
 
 
@@ -90,7 +90,7 @@ class ValidationConfig:
     """episodes per validation: the learner in a random seat, teammates drawn per episode"""
 
     def validate(self) -> None:
-        positive_int("validation", self, "episodes")
+        positive_int("validation", self, "episodes", maximum=10**6)
         ok = isinstance(self.pool, str) and self.pool not in EVALUATION_POOLS and self.pool
         require(
             bool(ok),
@@ -136,10 +136,11 @@ class RunConfig:
         require(
             self.method in METHODS, "method", f"one of {', '.join(sorted(METHODS))}", self.method
         )
-        for name in ("generations", "seed"):
+        for name, most in (("generations", 10**6), ("seed", 2**32 - 1)):
             value = getattr(self, name)
-            ok = isinstance(value, int) and not isinstance(value, bool) and value >= 0
-            require(ok, name, "an integer >= 0", value)
+            ok = isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= most
+            allowed = "an integer >= 0" if not ok and value is not None and _low(value) else None
+            require(ok, name, allowed or f"an integer in [0, {most:,}]", value)
         known = sections()
         unknown = sorted(set(self.sections) - set(known))
         if unknown:
@@ -268,6 +269,11 @@ class RunConfig:
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+
+def _low(value: Any) -> bool:
+    """A count below its range (rather than above it or not a number)."""
+    return isinstance(value, int | float) and not isinstance(value, bool) and value < 0
 
 
 def _plain(section: Any) -> dict[str, Any]:

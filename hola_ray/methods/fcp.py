@@ -29,7 +29,8 @@ class FCPConfig:
     """environment steps of each agent's self-play training"""
 
     def validate(self) -> None:
-        positive_int("fcp", self, "agents", "env_steps")
+        positive_int("fcp", self, "agents", maximum=100)
+        positive_int("fcp", self, "env_steps", maximum=10**11)
 
 
 class FCP(Method):

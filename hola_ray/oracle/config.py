@@ -7,7 +7,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from hola_ray.env.checks import finite_in, positive_int, require
+from hola_ray.env.checks import finite_in, positive_int, require, widths
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.layout import ObsLayout
 from hola_ray.policies.learned import DISTRIBUTIONS, export_from_rllib
@@ -83,9 +83,11 @@ class OracleConfig:
 
     def validate(self) -> None:
         s = "oracle"
-        positive_int(s, self, "env_steps", "train_batch", "minibatch", "epochs")
-        positive_int(s, self, "envs_per_runner")
-        positive_int(s, self, "env_runners", minimum=0)
+        positive_int(s, self, "env_steps", maximum=10**11)
+        positive_int(s, self, "train_batch", "minibatch", maximum=10**8)
+        positive_int(s, self, "epochs", maximum=10_000)
+        positive_int(s, self, "envs_per_runner", maximum=65_536)
+        positive_int(s, self, "env_runners", minimum=0, maximum=10_000)
         require(
             self.minibatch <= self.train_batch,
             "oracle.minibatch",
@@ -124,8 +126,7 @@ class OracleConfig:
             f"one of {', '.join(DISTRIBUTIONS)}",
             self.action_dist,
         )
-        ok = len(self.hidden) >= 1 and all(isinstance(h, int) and h >= 1 for h in self.hidden)
-        require(ok, "oracle.hidden", "a non-empty list of positive layer widths", self.hidden)
+        widths("oracle.hidden", self.hidden)
 
     def model_features(self, env: PursuitConfig) -> dict[str, Any] | None:
         """The learned policies' proximity features ({"indices", "gain"}), or None."""

@@ -25,7 +25,7 @@ class PopulationConfig:
 
     def validate(self, l: int) -> None:  # noqa: E741 - the paper's l
         s = "population"
-        positive_int(s, self, "max_size", "initial_size", "top_m")
+        positive_int(s, self, "max_size", "initial_size", "top_m", maximum=100)
         require(
             self.max_size >= l,
             "population.max_size (the hypergraph size)",
@@ -60,5 +60,6 @@ class GrapherConfig:
     """hyperedge evaluations in flight at once (member actors busy at a time)"""
 
     def validate(self) -> None:
-        positive_int("grapher", self, "episodes_per_edge", "workers")
-        positive_int("grapher", self, "edges_per_learner", minimum=0)
+        positive_int("grapher", self, "episodes_per_edge", maximum=10**6)
+        positive_int("grapher", self, "workers", maximum=10_000)
+        positive_int("grapher", self, "edges_per_learner", minimum=0, maximum=10**6)

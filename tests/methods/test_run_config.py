@@ -44,6 +44,14 @@ def test_yaml_round_trip(name):
         ({"grapher": {"episodes": 3}}, r"unknown key\(s\) grapher.episodes"),
         ({"generations": -1}, r"generations must be an integer >= 0"),
         ({"pretrain": {"alpha": 2.0}}, r"pretrain.alpha must be in \[0, 1\]"),
+        # absurd sizes: typos, not runs
+        ({"oracle": {"hidden": [10**9]}}, r"oracle.hidden must be a list of at most 16"),
+        ({"oracle": {"envs_per_runner": 10**8}}, r"envs_per_runner must be an integer in \[1,"),
+        ({"oracle": {"env_steps": 10**15}}, r"oracle.env_steps must be an integer in \[1,"),
+        ({"population": {"max_size": 10**5}}, r"population.max_size must be an integer in"),
+        ({"grapher": {"episodes_per_edge": 10**9}}, r"episodes_per_edge must be an integer in"),
+        ({"env": {"horizon": 10**9}}, r"env.horizon must be an integer in \[1, 1,000,000\]"),
+        ({"generations": 10**9}, r"generations must be an integer in \[0, 1,000,000\]"),
     ],
 )
 def test_bad_values_name_the_field(patch, message):
