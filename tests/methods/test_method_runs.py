@@ -32,11 +32,21 @@ def _ray(ray_session):
     return ray_session
 
 
-def train(config: dict, out: Path, capsys) -> str:
+def train(config: dict, out: Path, capsys, adopt_from: tuple[Path, ...] = ()) -> str:
     """Train `config` into `out`; what the trainer printed."""
     capsys.readouterr()
-    Trainer(RunConfig.from_dict(config), out, progress=False).fit()
+    Trainer(RunConfig.from_dict(config), out, progress=False, adopt_from=adopt_from).fit()
     return capsys.readouterr().out
+
+
+@pytest.fixture(scope="module")
+def mep_zero(tmp_path_factory) -> Path:
+    """hola's generation 0 on the smoke config (MEP's population and G_0), built once: the
+    methods that share it (mep, the toy method) adopt it, as an experiment's trials do."""
+    out = tmp_path_factory.mktemp("mep_zero") / "hola"
+    smoke = yaml.safe_load(SMOKE.read_text())
+    Trainer(RunConfig.from_dict(smoke | {"generations": 0}), out, progress=False).fit()
+    return out
 
 
 def test_self_play_run_seats_one_learner_and_keeps_its_best(tmp_path, capsys):
@@ -62,7 +72,7 @@ def test_self_play_run_seats_one_learner_and_keeps_its_best(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("method", ["fcp", "mep"])
-def test_best_response_methods_keep_their_population_fixed(tmp_path, capsys, method):
+def test_best_response_methods_keep_their_population_fixed(tmp_path, capsys, method, mep_zero):
     """fcp: the population is two self-play agents' start, middle and end checkpoints;
     mep: the MEP population, partners then drawn by the rank of the learner's returns.
     Neither admits the learner; both train it as a best response, drawn as they say."""
@@ -74,9 +84,10 @@ def test_best_response_methods_keep_their_population_fixed(tmp_path, capsys, met
         patch |= {"fcp": {"agents": 1, "env_steps": 2000}, "population": {"max_size": 4}}
     run_config = smoke | patch
     out = tmp_path / method
-    said = train(run_config, out, capsys)
+    said = train(run_config, out, capsys, adopt_from=(mep_zero,))  # fcp takes nothing
     r = RunDir(out)
     assert r.completed() == [0, 1]
+    assert ("adopted from" in said) == (method == "mep")
     rows = r.metrics_rows()
     size = 3 if method == "fcp" else smoke["population"]["initial_size"]
     assert [row["population_size"] for row in rows] == [size] * 2
@@ -138,15 +149,16 @@ def test_pbt_trains_its_agents_in_turn_and_exploits_the_best(tmp_path, capsys):
         assert torch.equal(w1, w2)
 
 
-def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(tmp_path, capsys):
+def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(
+    tmp_path, capsys, mep_zero
+):
     """hola and uniform of one seed build the same G_0 (MEP's population): uniform taking
     hola's generation 0 holds the same members and hyperedges as uniform building its own,
     and draws them by its own rules (the method's, not the folder's); a run whose
     pre-training differs takes nothing."""
 
     smoke = yaml.safe_load(SMOKE.read_text()) | {"generations": 0}
-    donor, own, adopted = tmp_path / "hola", tmp_path / "uniform-own", tmp_path / "uniform"
-    train(smoke | {"method": "hola"}, donor, capsys)
+    donor, own, adopted = mep_zero, tmp_path / "uniform-own", tmp_path / "uniform"
     train(smoke | {"method": "uniform"}, own, capsys)
     capsys.readouterr()
     Trainer(
@@ -203,13 +215,14 @@ class AlwaysTheFavourite:
 
 class Favourite(Method):
     joins = False
+    shares_generation_zero = True  # MEP's population, as Method builds it by default
     section = ("favourite", FavouriteConfig)
 
     def rules(self, config: RunConfig) -> AlwaysTheFavourite:
         return AlwaysTheFavourite(config.favourite.slot)
 
 
-def test_a_new_method_is_one_class_and_one_registry_line(tmp_path, capsys):
+def test_a_new_method_is_one_class_and_one_registry_line(tmp_path, capsys, mep_zero):
     """A method written here, outside the package, registered with one line, trains a
     generation through the one trainer: its own section is read, the coordinator draws by
     its rules (φ all on the favourite) and the Oracle seats what the coordinator planned."""
@@ -220,7 +233,9 @@ def test_a_new_method_is_one_class_and_one_registry_line(tmp_path, capsys):
     try:
         smoke = yaml.safe_load(SMOKE.read_text())
         out = tmp_path / "favourite"
-        said = train(smoke | {"method": "favourite", "favourite": {"slot": 2}}, out, capsys)
+        config = smoke | {"method": "favourite", "favourite": {"slot": 2}}
+        said = train(config, out, capsys, adopt_from=(mep_zero,))
+        assert "gen 0: adopted from hola" in said  # the same G_0 as hola's, built once
         r = RunDir(out)
         assert r.completed() == [0, 1]
         assert r.read_json(1, "phi.json") == {"2": 1.0}  # node 2 sits in slot 2
