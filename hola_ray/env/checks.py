@@ -153,7 +153,7 @@ def checked(hint: Any, value: Any, name: str, field_name: str | None = None) -> 
     """`value` as the field's annotation `hint` wants it, or one `ConfigError` naming the
     field: a count is an int (a whole float such as 1e5 becomes one; a bool, 1.5 or "3" is
     an error), a number an int or float but not a bool, a string, NaN or ±inf, a flag a
-    bool, a list a list (its items checked the same way), a section a mapping (not null).
+    bool, a list a tuple (its items checked the same way), a section a mapping (not null).
     Ranges are each config's own checks. `field_name`: the field an item of a list
     belongs to, for the error's location."""
 
@@ -195,7 +195,7 @@ def checked(hint: Any, value: Any, name: str, field_name: str | None = None) -> 
             items = list(args)
             if len(value) != len(items):
                 fail(f"a list of {len(items)} items")
-        return type(value)(
+        return tuple(  # the frozen dataclasses hold tuples, however the YAML wrote the list
             checked(h, v, f"{name}[{i}]", field_name or name)
             for i, (h, v) in enumerate(zip(items, value, strict=True))
         )

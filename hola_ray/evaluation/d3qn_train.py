@@ -136,9 +136,6 @@ class D3QNRun:
         if not isinstance(settings, Mapping):
             raise ConfigError(f"d3qn must be a mapping, got {settings!r}", "d3qn")
         kwargs = consume_fields(D3QNSettings, settings, "d3qn.")
-        for key in ("hidden", "head_hidden"):
-            if key in kwargs:
-                kwargs[key] = tuple(kwargs[key])
         try:
             env = PursuitConfig.from_dict(raw.get("env", {}))
         except ConfigError as err:

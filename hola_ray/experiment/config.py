@@ -156,9 +156,7 @@ def _evaluation(raw: Any, methods: set[str]) -> EvaluationSettings:
         return EvaluationSettings()
     if not isinstance(raw, Mapping):
         raise ConfigError(f"evaluation must be a mapping, got {raw!r}", "evaluation")
-    ev = consume_fields(EvaluationSettings, raw, "evaluation.")
-    ev = {k: _tuples(v) for k, v in ev.items()}
-    settings = EvaluationSettings(**ev)
+    settings = EvaluationSettings(**consume_fields(EvaluationSettings, raw, "evaluation."))
     positive_int("evaluation", settings, "episodes", "cell_episodes", maximum=10**6)
     ok = len(settings.seeds) > 0 and min(settings.seeds) >= 0
     require(ok, "evaluation.seeds", "a non-empty list of integers >= 0", list(settings.seeds))
@@ -172,11 +170,6 @@ def _evaluation(raw: Any, methods: set[str]) -> EvaluationSettings:
     ok = all(set(pair) <= methods for pair in settings.pairs)
     require(ok, "evaluation.pairs", "[A, B] pairs of the experiment's methods", settings.pairs)
     return settings
-
-
-def _tuples(value: Any) -> Any:
-    """Lists (and lists of lists) read from YAML as the tuples the dataclass holds."""
-    return tuple(_tuples(v) for v in value) if isinstance(value, list | tuple) else value
 
 
 def trial_name(method: str, seed: int) -> str:

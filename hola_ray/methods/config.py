@@ -284,12 +284,8 @@ def _plain(section: Any) -> dict[str, Any]:
 
 
 def _section(cls: type, data: Any, name: str) -> Any:
-    """The section dataclass `cls` from its mapping (lists for tuple fields)."""
-    kwargs = _fields(cls, data, f"{name}.")
-    for f in dataclasses.fields(cls):
-        if f.name in kwargs and isinstance(kwargs[f.name], list):
-            kwargs[f.name] = tuple(kwargs[f.name])
-    return cls(**kwargs)
+    """The section dataclass `cls` from its mapping."""
+    return cls(**_fields(cls, data, f"{name}."))
 
 
 def _fields(cls: type, data: Any, prefix: str) -> dict[str, Any]:
