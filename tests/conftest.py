@@ -56,7 +56,9 @@ ROOT = Path(__file__).resolve().parent.parent
 def smoke_run(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
     """`python -m hola_ray.run` on configs/smoke.yaml, once per session: its run directory
     and the finished process. Two tests read it: the run directory's contents, and the
-    experiment's hola-s0 trial (same config and seed, run as a Ray task) matching it."""
+    experiment's hola-s0 trial (same config and seed, run as a Ray task) matching it.
+    It weighs its hyperedges on member actors, where the smoke config plays them in the
+    driver, so that match also shows the two Grapher paths give the same run."""
     out = tmp_path_factory.mktemp("smoke") / "smoke"
     cmd = [
         sys.executable,
@@ -66,6 +68,8 @@ def smoke_run(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
         str(ROOT / "configs" / "smoke.yaml"),
         "--out",
         str(out),
+        "--set",
+        "grapher.workers=2",
         "--no-dashboard",
         "--quiet",
     ]

@@ -47,10 +47,13 @@ def experiment(tmp_path: Path, env_runners: int, methods=("hola", "sp"), paralle
     return Experiment.from_yaml(path)
 
 
-def stand_in(meet: int):
+def stand_in(meet: int, until_one_waits: bool = False):
     """A stand-in trial: it starts what a trial starts (one CPU per env runner, a member
     actor asking for no CPU of its own), notes where each of them and itself run, and waits
-    until `meet` trials have started (so that it fails unless they run side by side)."""
+    until `meet` trials have started (so that it fails unless they run side by side).
+    until_one_waits: it also does not end before the progress view has shown two trials
+    running and one waiting for its CPUs (else a trial could end, and free its CPUs, before
+    the view ever looked at the one that waits)."""
 
     def trial(config: dict, run_dir: str, *where_to_store) -> str:
         @ray.remote(num_cpus=1)
@@ -86,6 +89,16 @@ def stand_in(meet: int):
         # until the runner's progress view (DIR/progress.json) has shown this trial running
         progress = root.parent.parent / "progress.json"
         wait_until(lambda: _status(progress, root.name) == "running", f"{root.name} shown")
+        if until_one_waits:
+            seen_one = root.parent / "one-waited"
+
+            def one_waits() -> bool:
+                shown = list(_statuses(progress).values())
+                if shown.count("running") == 2 and "placing" in shown:
+                    seen_one.touch()
+                return seen_one.exists()
+
+            wait_until(one_waits, "two trials shown running and one waiting for CPUs")
         (root / "where.json").write_text(json.dumps(seen))
         return run_dir
 
@@ -101,16 +114,22 @@ def wait_until(event, what: str, limit_s: float = 900.0) -> None:
         time.sleep(0.05)
 
 
-def _status(progress: Path, trial: str) -> str | None:
+def _statuses(progress: Path) -> dict[str, str]:
     try:
-        return json.loads(progress.read_text())[trial]["status"]
+        return {t: row["status"] for t, row in json.loads(progress.read_text()).items()}
     except (OSError, ValueError, KeyError):
-        return None  # not written yet, or caught mid-replace
+        return {}  # not written yet, or caught mid-replace
 
 
-def run(exp: Experiment, out: Path, meet: int) -> tuple[Runner, list[str]]:
+def _status(progress: Path, trial: str) -> str | None:
+    return _statuses(progress).get(trial)
+
+
+def run(
+    exp: Experiment, out: Path, meet: int, until_one_waits: bool = False
+) -> tuple[Runner, list[str]]:
     class Probe(Runner):
-        trial_fn = staticmethod(stand_in(meet))
+        trial_fn = staticmethod(stand_in(meet, until_one_waits))
 
     lines: list[str] = []
     runner = Probe(exp, out, say=lines.append, poll_s=0.2)
@@ -149,8 +168,8 @@ def test_a_trial_that_cannot_fit_yet_is_shown_waiting_for_cpus(tmp_path):
     # three trials asking for 2 CPUs each, on 4 CPUs: the third waits for CPUs rather
     # than starting with its env runner unplaced
     exp = experiment(tmp_path, env_runners=1, methods=("hola", "sp", "uniform"))
-    runner, lines = run(exp, tmp_path / "out", meet=1)
-    assert any("1 waiting for CPUs (" in line for line in lines), lines
+    runner, lines = run(exp, tmp_path / "out", meet=1, until_one_waits=True)
+    assert any("2 running" in line and "1 waiting for CPUs (" in line for line in lines), lines
     assert len({seen(runner, t)["trial"][0] for t in exp.trials()}) == 3
 
 

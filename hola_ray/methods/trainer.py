@@ -35,7 +35,7 @@ from hola_ray.methods.config import RunConfig
 from hola_ray.oracle import LEARNER, Oracle
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name, run_id
-from hola_ray.population.grapher import evaluate_edges
+from hola_ray.population.grapher import evaluate_edges, evaluate_edges_here
 from hola_ray.population.lock import RunLock
 from hola_ray.population.member import MemberPool
 from hola_ray.population.rundir import RunDir
@@ -401,17 +401,31 @@ class Trainer:
         edges = ray.get(self.coord.edges_to_evaluate.remote(g))
         nodes = sorted({v for e in edges for v in e})
         exports = ray.get(self.coord.exports.remote(nodes))
-        actors = self.pool.ensure(exports)
-        results, stats = evaluate_edges(
-            edges,
-            actors,
-            ray.put(exports),
-            c.grapher.episodes_per_edge,
-            seed_of=lambda e: edge_seed(c.seed, g, e),
-            workers=c.grapher.workers,
-            desc=f"gen {g} grapher",
-            progress=self.progress,
-        )
+
+        def seed_of(edge: tuple[int, ...]) -> int:
+            return edge_seed(c.seed, g, edge)
+
+        if c.grapher.workers == 0:
+            results, stats = evaluate_edges_here(
+                edges,
+                exports,
+                c.env.to_dict(),
+                c.grapher.episodes_per_edge,
+                seed_of,
+                desc=f"gen {g} grapher",
+                progress=self.progress,
+            )
+        else:
+            results, stats = evaluate_edges(
+                edges,
+                self.pool.ensure(exports),
+                ray.put(exports),
+                c.grapher.episodes_per_edge,
+                seed_of=seed_of,
+                workers=c.grapher.workers,
+                desc=f"gen {g} grapher",
+                progress=self.progress,
+            )
         return results, {
             "grapher_edges": stats.edges,
             "grapher_s": round(stats.wall_s, 2),

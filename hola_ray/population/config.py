@@ -57,9 +57,10 @@ class GrapherConfig:
     edges_per_learner: int = 0
     """(l − 1)-sets of members sampled for the learner's hyperedges; 0 = every one"""
     workers: int = 2
-    """hyperedge evaluations in flight at once (member actors busy at a time)"""
+    """hyperedge evaluations in flight at once (member actors busy at a time); 0 = play
+    them one after another in the driver, no member actors (small populations, tests)"""
 
     def validate(self) -> None:
         positive_int("grapher", self, "episodes_per_edge", maximum=10**6)
-        positive_int("grapher", self, "workers", maximum=10_000)
+        positive_int("grapher", self, "workers", minimum=0, maximum=10_000)
         positive_int("grapher", self, "edges_per_learner", minimum=0, maximum=10**6)

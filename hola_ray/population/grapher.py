@@ -1,4 +1,6 @@
-"""The Grapher: hyperedge evaluations fanned out over member actors with `ray.wait`.
+"""The Grapher: hyperedge evaluations fanned out over member actors with `ray.wait`, or
+played one after another in the calling process (`evaluate_edges_here`, for populations
+too small to be worth an actor per member).
 
 At most `workers` evaluations are in flight. Each goes to the least busy member actor of
 its hyperedge (any live member when none of them is). A failed evaluation (a member actor
@@ -16,6 +18,7 @@ import ray
 from ray.exceptions import RayActorError
 
 from hola_ray import interrupt
+from hola_ray.population.member import evaluate_team
 from hola_ray.population.state import EdgeResult
 from hola_ray.progress import progress as progress_bar
 
@@ -107,3 +110,26 @@ def evaluate_edges(
     done = [r for r in results if r is not None]
     assert len(done) == len(edges)
     return done, GrapherStats(len(edges), len(edges) * episodes, wall, retries)
+
+
+def evaluate_edges_here(
+    edges: Sequence[tuple[int, ...]],
+    exports: Mapping[int, Mapping[str, object]],
+    env_config: Mapping[str, object],
+    episodes: int,
+    seed_of: Callable[[tuple[int, ...]], int],
+    desc: str = "grapher",
+    progress: bool = True,
+) -> tuple[list[EdgeResult], GrapherStats]:
+    """Evaluate every hyperedge in this process, one after another, with the seeds the
+    member actors would use: the same weights as `evaluate_edges`, without an actor to
+    start per member (`grapher.workers: 0`)."""
+    results = []
+    start = time.perf_counter()
+    with progress_bar(len(edges) * episodes, desc, "ep", enabled=progress) as bar:
+        for edge in edges:
+            interrupt.check()
+            results.append(evaluate_team(env_config, edge, exports, episodes, seed_of(edge)))
+            bar.update(episodes)
+    wall = time.perf_counter() - start
+    return results, GrapherStats(len(edges), len(edges) * episodes, wall, 0)

@@ -1,4 +1,5 @@
-"""The Grapher on Ray: worker count and failures never change the hyperedge weights."""
+"""The Grapher on Ray: worker count, failures and playing in the driver never change the
+hyperedge weights."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import ray
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.policies.learned import random_export
-from hola_ray.population.grapher import evaluate_edges
+from hola_ray.population.grapher import evaluate_edges, evaluate_edges_here
 from hola_ray.population.member import MemberPool
 from hola_ray.population.state import edge_seed
 
@@ -52,6 +53,14 @@ def test_weights_do_not_depend_on_the_worker_count(ray_session, baseline):
     assert [r.nodes for r in results] == EDGES
     assert len({r.team_return for r in results}) > 1  # the members really differ
     assert all(r.episodes == EPISODES for r in results)
+
+
+def test_the_driver_plays_the_same_weights_as_the_member_actors(baseline):
+    results, stats = evaluate_edges_here(
+        EDGES, EXPORTS, ENV.to_dict(), EPISODES, lambda e: edge_seed(0, 1, e), progress=False
+    )
+    assert results == baseline
+    assert (stats.edges, stats.episodes, stats.retries) == (len(EDGES), len(EDGES) * EPISODES, 0)
 
 
 def test_killing_members_mid_grapher_gives_the_same_weights(ray_session, baseline):
