@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import subprocess
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -43,28 +42,10 @@ from hola_ray.evaluation.pools import (
     sha256,
     verify,
 )
+from hola_ray.provenance import commit_id
 
 
 # ---- building -------------------------------------------------------------------------------
-def commit_id() -> str:
-    """The repository's HEAD, with "-dirty" when tracked files other than the pools' own
-    (which a build writes) differ from it."""
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no", "--", ".", ":!pools"],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return head + ("-dirty" if dirty else "")
-
-
 def train_member(member: Member, progress: bool = True) -> tuple[Path, dict[str, Any]]:
     """Train (or resume, or reuse) a learned member; its export file and build facts."""
     config_path = ROOT / member.config

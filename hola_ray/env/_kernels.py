@@ -182,16 +182,22 @@ def approach_term(b, i, p, s, dist_prev):
 
 
 @njit(cache=True, inline="always")
-def _move_pursuers(b, actions, p, s):
-    """Each active pursuer turns by (2a − 1)·max_turn and moves at its speed."""
+def _move_pursuers(b, actions, placed, p, s):
+    """Each active pursuer turns by (2a − 1)·max_turn and moves at its speed; or, when
+    `placed` holds the batch's positions (flown by outside dynamics), turns and is put
+    where it flew."""
     fp = p.fp
     step_p = fp[F_V_P] * fp[F_DT]
     for i in range(s.ppos.shape[1]):
         if s.pactive[b, i]:
             h = wrap(s.phead[b, i] + (2.0 * actions[b, i] - 1.0) * fp[F_MAX_TURN])
             s.phead[b, i] = h
-            s.ppos[b, i, 0] += step_p * math.cos(h)
-            s.ppos[b, i, 1] += step_p * math.sin(h)
+            if placed.shape[0] > 0:
+                s.ppos[b, i, 0] = placed[b, i, 0]
+                s.ppos[b, i, 1] = placed[b, i, 1]
+            else:
+                s.ppos[b, i, 0] += step_p * math.cos(h)
+                s.ppos[b, i, 1] += step_p * math.sin(h)
 
 
 @njit(cache=True, inline="always")
@@ -287,8 +293,9 @@ def _collisions(b, p, s, reward, disabled):
 
 
 @njit(cache=True)
-def step_episode(b, actions, p, s, out):
-    """Advance episode b by one step with pursuer actions [n_p] in [0, 1] (already clipped)."""
+def step_episode(b, actions, placed, p, s, out):
+    """Advance episode b by one step with pursuer actions [n_p] in [0, 1] (already clipped);
+    `placed`: [B, n_p, 2] where outside dynamics flew the pursuers, or empty (kinematic)."""
     fp, ip = p.fp, p.ip
     obs, reward, terminated, truncated, disabled, new_heading, dist_prev = out
     ppos, epos, pactive, done, t = s.ppos, s.epos, s.pactive, s.done, s.t
@@ -313,7 +320,7 @@ def step_episode(b, actions, p, s, out):
         if s.ealive[b, e]:
             new_heading[b, e] = evader_heading(b, e, p, s)
 
-    _move_pursuers(b, actions, p, s)
+    _move_pursuers(b, actions, placed, p, s)
     if fp[F_APPROACH_OWN] > 0.0:  # credited to the pursuer's own move: to where they were
         _approach(b, p, s, reward, dist_prev)
     _move_evaders(b, p, s, new_heading)
@@ -341,10 +348,10 @@ def step_episode(b, actions, p, s, out):
 
 
 @njit(cache=True, parallel=True)
-def step_all(actions, p, s, out):
+def step_all(actions, placed, p, s, out):
     """Advance every episode of the batch by one step, in parallel over episodes."""
     for b in prange(actions.shape[0]):
-        step_episode(b, actions, p, s, out)
+        step_episode(b, actions, placed, p, s, out)
 
 
 @njit(cache=True, parallel=True)

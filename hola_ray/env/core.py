@@ -69,6 +69,7 @@ class BatchedPursuit:
             new_heading=np.zeros((B, n_e)),
             dist_prev=np.zeros((B, n_p, n_e)),
         )
+        self._kinematic = np.zeros((0, n_p, 2))  # `step`'s placed: none, move kinematically
         # Public views of the kernel arrays (the same objects, updated in place).
         arena = self._arena
         self.pursuer_pos = arena.ppos  # [B, n_p, 2] metres
@@ -163,8 +164,15 @@ class BatchedPursuit:
         return mask
 
     # ---- step ------------------------------------------------------------------------
-    def step(self, actions: np.ndarray) -> StepResult:
-        """Advance every running episode; actions [B, n_p] in [0, 1] (clipped; NaN is an error)."""
+    def step(self, actions: np.ndarray, placed: np.ndarray | None = None) -> StepResult:
+        """Advance every running episode; actions [B, n_p] in [0, 1] (clipped; NaN is an error).
+
+        placed: [B, n_p, 2] where each pursuer is at the end of the step, flown there by
+            outside dynamics (`hola_ray.flight`) that tracked the heading its action
+            commands: an active pursuer takes that heading and this position instead of
+            the kinematic move. The evaders still decide on the positions before the step,
+            and captures and collisions are judged where the pursuers are after it.
+        """
         actions = np.asarray(actions, dtype=np.float64)
         expected = (self.batch_size, self.config.n_pursuers)
         if actions.shape != expected:
@@ -173,7 +181,13 @@ class BatchedPursuit:
             where = np.argwhere(np.isnan(actions))[:3].tolist()
             raise ValueError(f"NaN action(s) at [episode, pursuer] {where}")
         actions = np.clip(actions, 0.0, 1.0)
-        _kernels.step_all(actions, self._params, self._arena, self._out)
+        if placed is None:
+            placed = self._kinematic
+        else:
+            placed = np.ascontiguousarray(placed, dtype=np.float64)
+            if placed.shape != (*expected, 2) or not np.isfinite(placed).all():
+                raise ValueError(f"placed must be finite positions {(*expected, 2)}")
+        _kernels.step_all(actions, placed, self._params, self._arena, self._out)
         out = self._out
         return StepResult(out.obs, out.reward, out.terminated, out.truncated, out.disabled)
 

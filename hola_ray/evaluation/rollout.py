@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,6 +13,9 @@ from hola_ray.evaluation.metrics import TEAM
 from hola_ray.evaluation.stats import episode_seeds as derive_seeds
 from hola_ray.evaluation.stats import mean_and_se
 from hola_ray.policies.base import Policy, seated
+
+Dynamics = Callable[[BatchedPursuit], Callable[[np.ndarray], np.ndarray]]
+"""Outside dynamics: env → (actions [B, n_p] → the pursuers' positions after the step)."""
 
 
 class PolicyError(ValueError):
@@ -65,6 +68,7 @@ def rollout(
     seed: int = 0,
     batch_size: int = 1024,
     episode_seeds: np.ndarray | None = None,
+    dynamics: Dynamics | None = None,
 ) -> RolloutResult:
     """Play `episodes` episodes to their end and collect their metrics.
 
@@ -76,6 +80,9 @@ def rollout(
     batch_size: most episodes simulated at once.
     episode_seeds: [episodes] explicit episode seeds instead of those derived from `seed`
         (to replay the same episodes with different teams).
+    dynamics: how the pursuers really move (`hola_ray.flight.Crazyflies`): called with each
+        batch's env, it gives a function of the step's actions that returns where each
+        pursuer is at the end of the step; None is the arena's kinematic move.
     """
     n_p = config.n_pursuers
     policies = seated(policies)
@@ -102,7 +109,7 @@ def rollout(
     parts = []
     for start in range(0, episodes, batch_size):
         stop = min(start + batch_size, episodes)
-        parts.append(_play(config, policies, assignment[start:stop], seeds[start:stop]))
+        parts.append(_play(config, policies, assignment[start:stop], seeds[start:stop], dynamics))
     return RolloutResult(*(np.concatenate(column) for column in zip(*parts, strict=True)))
 
 
@@ -111,10 +118,12 @@ def _play(
     policies: Sequence[Policy],
     assignment: np.ndarray,  # [B, n_p]
     seeds: np.ndarray,  # [B]
+    dynamics: Dynamics | None = None,
 ) -> tuple[np.ndarray, ...]:
     batch = assignment.shape[0]
     env = BatchedPursuit(config, batch)
     obs = env.reset(seeds=seeds)
+    fly = dynamics(env) if dynamics is not None else None
     masks = [assignment == k for k in range(len(policies))]
     for policy, mask in zip(policies, masks, strict=True):
         if mask.any():
@@ -126,7 +135,7 @@ def _play(
                 rows = obs[mask]
                 name = getattr(policy, "name", type(policy).__name__)
                 actions[mask] = PolicyError.check(name, policy.act(rows), len(rows))
-        obs = env.step(actions).obs
+        obs = env.step(actions, fly(actions) if fly is not None else None).obs
     return (
         env.success.copy(),
         env.collided.copy(),

@@ -9,6 +9,7 @@ import numpy as np
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.env.trajectory import Trajectory
+from hola_ray.evaluation.rollout import Dynamics
 from hola_ray.policies.base import Policy, seated
 
 
@@ -17,14 +18,17 @@ def record(
     team: Sequence[Policy],
     seed: int = 0,
     initial_state: Mapping[str, np.ndarray] | None = None,
+    dynamics: Dynamics | None = None,
 ) -> Trajectory:
-    """Play one episode with `team[i]` in pursuer slot i and record every state."""
+    """Play one episode with `team[i]` in pursuer slot i and record every state;
+    `dynamics` as in `rollout` (None: the arena's kinematic move)."""
     if len(team) != config.n_pursuers:
         raise ValueError(f"team must hold {config.n_pursuers} policies, got {len(team)}")
     env = BatchedPursuit(config, 1)
     obs = env.reset(seeds=[seed], initial_state={0: initial_state} if initial_state else None)
     # one player per seat, as in `rollout`: an object in several seats plays as copies
     players = seated(team)
+    fly = dynamics(env) if dynamics is not None else None
     for policy in players:
         policy.reset(np.ones(1, dtype=bool))
     frames: dict[str, list[np.ndarray]] = {
@@ -51,7 +55,7 @@ def record(
         for seat, policy in enumerate(players):
             actions[0, seat] = policy.act(obs[0, seat : seat + 1])[0]
         alive_before = env.evader_alive[0].copy()
-        result = env.step(actions)
+        result = env.step(actions, fly(actions) if fly is not None else None)
         obs = result.obs
         for e in np.flatnonzero(alive_before & ~env.evader_alive[0]):
             captures.append((int(env.t[0]), int(e), tuple(env.evader_pos[0, e].tolist())))

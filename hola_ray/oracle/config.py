@@ -11,6 +11,7 @@ from hola_ray.env.checks import finite_in, positive_int, require, widths
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.layout import ObsLayout
 from hola_ray.policies.learned import DISTRIBUTIONS, export_from_rllib
+from hola_ray.provenance import commit_id
 
 SAMPLERS = ("batched", "pettingzoo")
 """oracle.sampler: how the Oracle's env runners sample (OracleConfig.sampler)."""
@@ -139,11 +140,11 @@ class OracleConfig:
 
     def export(self, state: Mapping[str, Any], env: PursuitConfig) -> dict[str, Any]:
         """The plain-torch export (`MLPPolicy`) of an RLlib module state trained under this
-        config, with the scenario it was trained in."""
+        config, with the scenario it was trained in and the commit that trained it."""
         export = export_from_rllib(
             state, activation="tanh", dist=self.action_dist, features=self.model_features(env)
         )
-        return export | {"scenario": env.to_dict()}
+        return export | {"scenario": env.to_dict(), "commit": commit_id()}
 
 
 @dataclass(frozen=True)

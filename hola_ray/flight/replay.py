@@ -1,0 +1,76 @@
+"""One episode flown as Crazyflies beside the arena's replay of it: top views of the true
+paths (captures ★, crashes ✕) and the drones' height trace."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.env.render import EVADER_COLOURS, PURSUER_COLOURS, draw_arena
+from hola_ray.env.trajectory import Trajectory
+from hola_ray.evaluation.trajectory import record
+from hola_ray.flight.dynamics import Crazyflies
+from hola_ray.policies.base import Policy
+
+
+def _top_view(ax, config: PursuitConfig, traj: Trajectory, title: str) -> None:
+    draw_arena(ax, config)
+    for i in range(config.n_pursuers):
+        colour = PURSUER_COLOURS[i % len(PURSUER_COLOURS)]
+        xy = traj.pursuer_pos[:, i]
+        ax.plot(xy[:, 0], xy[:, 1], "-", color=colour, lw=1.1, label=f"P{i} {traj.policy_names[i]}")
+        ax.plot(*xy[0], "o", color=colour, ms=5)
+    for e in range(config.n_evaders):
+        colour = EVADER_COLOURS[e % len(EVADER_COLOURS)]
+        alive = np.flatnonzero(traj.evader_alive[:, e])
+        xy = traj.evader_pos[: (int(alive[-1]) + 2 if alive.size else 1), e]
+        ax.plot(xy[:, 0], xy[:, 1], "-", color=colour, lw=1.1, label=f"E{e}")
+    for step, _, where in traj.captures:
+        ax.plot(*where, "*", color="gold", mec="black", ms=14, zorder=5)
+        ax.annotate(f"t={step}", where, xytext=(4, 4), textcoords="offset points", fontsize=7)
+    for step, _, where in traj.collisions:
+        ax.plot(*where, "X", color="black", ms=10, zorder=5)
+        ax.annotate(f"t={step}", where, xytext=(4, -9), textcoords="offset points", fontsize=7)
+    m = traj.metrics
+    ax.set_title(
+        f"{title}\nsuccess={m['success']} collision={m['collision']} length={m['length']}",
+        fontsize=9,
+    )
+
+
+def draw_flight(config: PursuitConfig, team: Sequence[Policy], seed: int, path: str | Path) -> dict:
+    """Record episode `seed` flown and in the arena; write the figure; both metrics."""
+    made: list[Crazyflies] = []
+
+    def crazyflies(env):
+        made.append(Crazyflies(env))
+        return made[-1]
+
+    flown = record(config, team, seed, dynamics=crazyflies)
+    arena = record(config, team, seed)
+    heights = np.stack(made[0].path)[:, 0, :, 2]  # [T + 1, n_p]
+    made[0].close()
+    fig = Figure(figsize=(12.0, 6.2), dpi=90)
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(2, 3, height_ratios=[4, 1.3])
+    _top_view(fig.add_subplot(grid[0, 0]), config, flown, "flown (Crazyflie 2.x, PID cascade)")
+    ax = fig.add_subplot(grid[0, 1])
+    _top_view(ax, config, arena, "the arena (kinematic), same seed and team")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7, frameon=False)
+    h = fig.add_subplot(grid[1, :])
+    t = np.arange(heights.shape[0]) * config.dt
+    for i in range(config.n_pursuers):
+        h.plot(
+            t, heights[:, i], color=PURSUER_COLOURS[i % len(PURSUER_COLOURS)], lw=1.0, label=f"P{i}"
+        )
+    h.set_xlabel("time (s)")
+    h.set_ylabel("height (m)")
+    h.set_title("the drones' heights (a downed drone's trace stays flat)", fontsize=9)
+    fig.subplots_adjust(left=0.07, right=0.98, top=0.93, bottom=0.08, hspace=0.35)
+    fig.savefig(str(path))
+    return {"flown": flown.metrics, "arena": arena.metrics}

@@ -1,0 +1,141 @@
+"""Fly a learned team as Crazyflies: `python -m hola_ray.fly ONNX_OR_POLICY`.
+
+The same arena, bars and DACOOP evaders as training, but each pursuer is a Crazyflie 2.x
+(pybullet rigid body, the firmware's PID cascade) holding 1 m and tracking the velocity
+set-point its policy's heading commands each control period; the policies read
+observations built from the drones' true positions. The same seeds and teams are also
+played in the kinematic arena, so the two columns are paired.
+
+ONNX_OR_POLICY: an ONNX file written by `python -m hola_ray.export` (played by
+onnxruntime; its manifest beside it gives the scenario), or anything export takes (a run
+directory, generation folder, .pt file or pool member id). It sits in seat 0; the other
+seats are copies of it, or `--teammates` (registry names, pool member ids or files, one per
+seat). Prints both columns; the last line is JSON: success, collision, length and
+kinematic_success, kinematic_collision, kinematic_length (and their standard errors).
+`--replay OUT.png` draws one episode flown beside the arena's replay of it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from hola_ray.cli import OneLineParser, fail
+from hola_ray.env.config import ConfigError, PursuitConfig
+
+INSTALL = "pip install -e '.[deploy]'"
+
+
+def learner(spec: str, evaders: int | None) -> tuple[Any, PursuitConfig]:
+    """The policy of seat 0 and the scenario it flies."""
+    if spec.endswith(".onnx"):
+        from hola_ray.policies.deploy import OnnxPolicy, read_manifest
+
+        config = PursuitConfig.from_dict(read_manifest(spec)["scenario"])
+        if evaders not in (None, config.n_evaders):
+            raise ValueError(f"{spec} flies {config.n_evaders} evader(s), not {evaders}")
+        return OnnxPolicy(spec), config
+    from hola_ray.evaluation.pools import MEMBERS
+    from hola_ray.export import resolve
+
+    policy, _ = resolve(spec)
+    config = policy.config
+    if evaders is not None and evaders != config.n_evaders:
+        if spec not in MEMBERS:
+            raise ValueError(f"{spec} was trained for {config.n_evaders} evader(s), not {evaders}")
+        from hola_ray.replay import resolve as by_name
+
+        config = dataclasses.replace(config, n_evaders=evaders)
+        policy = by_name(spec, config)  # a pool member plays other evader counts adapted
+    return policy, config
+
+
+def fly(
+    team: list[Any], config: PursuitConfig, episodes: int, seed: int, batch: int = 16
+) -> dict[str, Any]:
+    """Both columns for `team` on the same episodes: flown and kinematic."""
+    from hola_ray.evaluation.rollout import rollout
+    from hola_ray.flight import Crazyflies
+
+    start = time.perf_counter()
+    flown = rollout(config, team, episodes, seed=seed, batch_size=batch, dynamics=Crazyflies)
+    flight_s = time.perf_counter() - start
+    kinematic = rollout(config, team, episodes, seed=seed, batch_size=batch)
+    out: dict[str, Any] = {"episodes": episodes}
+    for prefix, result in (("", flown), ("kinematic_", kinematic)):
+        summary = result.summary()
+        for key in ("success", "collision", "length"):
+            out[f"{prefix}{key}"] = round(summary[key], 4)
+            out[f"{prefix}{key}_se"] = round(summary[f"{key}_se"], 4)
+        out[f"{prefix}crash_seat0"] = round(float(result.crashed[:, 0].mean()), 4)
+    out["flight_s"] = round(flight_s, 1)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = OneLineParser(prog="python -m hola_ray.fly", description=__doc__)
+    parser.add_argument(
+        "policy", help="an exported .onnx file, or a run directory, .pt or member id"
+    )
+    parser.add_argument("--teammates", nargs="+", default=None, help="the other seats' policies")
+    parser.add_argument("--episodes", type=int, default=32)
+    parser.add_argument("--evaders", type=int, default=None, help="a pool member's evader count")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--horizon", type=int, default=None, help="shorter episodes (tests)")
+    parser.add_argument(
+        "--replay", type=Path, default=None, help="PNG: one episode flown and in the arena"
+    )
+    parser.add_argument("--json", action="store_true", help="print only the JSON line")
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        return fail(f"--episodes must be >= 1, got {args.episodes}")
+    try:
+        import pybullet  # noqa: F401
+    except ImportError:
+        return fail(f"flying needs pybullet: {INSTALL}")
+    try:
+        seat0, config = learner(args.policy, args.evaders)
+        if args.horizon is not None:
+            config = dataclasses.replace(config, horizon=args.horizon)  # checked on creation
+        from hola_ray.replay import resolve as by_name
+
+        mates = args.teammates or [args.policy] * (config.n_pursuers - 1)
+        if len(mates) != config.n_pursuers - 1:
+            raise ValueError(f"give {config.n_pursuers - 1} teammates, got {len(mates)}")
+        team = [seat0] + [
+            seat0 if (name == args.policy and args.teammates is None) else by_name(name, config)
+            for name in mates
+        ]
+    except (ValueError, ConfigError, OSError, ImportError) as err:
+        return fail(str(err))
+    figures = fly(team, config, args.episodes, args.seed)
+    figures |= {
+        "policy": args.policy,
+        "teammates": mates,
+        "scenario": f"{config.n_pursuers} vs {config.n_evaders}",
+    }
+    if args.replay is not None:
+        from hola_ray.flight.replay import draw_flight
+
+        draw_flight(config, team, args.seed, args.replay)
+        if not args.json:
+            print(f"wrote {args.replay}")
+    if not args.json:
+        print(
+            f"{args.policy} with {', '.join(mates)}, {figures['scenario']}, "
+            f"{args.episodes} episodes (seed {args.seed}):"
+        )
+        for key in ("success", "collision", "length", "crash_seat0"):
+            print(
+                f"  {key:12s} flown {figures[key]:8.3f}   arena {figures['kinematic_' + key]:8.3f}"
+            )
+    print(json.dumps(figures))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

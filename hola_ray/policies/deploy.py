@@ -1,0 +1,321 @@
+"""A learned pursuer for a flight stack: its deterministic actor as an ONNX graph, and a
+manifest that says what the graph reads and what its output means.
+
+The graph takes the raw observation of SPEC §1 ([N, obs_dim] float32, the layout of
+`ObsLayout`), appends the proximity features itself when the actor was trained with them,
+and returns the action the arena takes (`action`, [N] in [0, 1]) and the heading change it
+commands (`heading_change`, [N] radians, positive to the left). It is the arithmetic of
+`MLPPolicy.act`, run by any ONNX runtime. `onnx` and `onnxruntime` come with the
+`deploy` extra (`pip install -e '.[deploy]'`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from hola_ray.env.config import PursuitConfig
+from hola_ray.env.layout import ObsLayout
+from hola_ray.policies.base import Policy
+from hola_ray.policies.learned import BETA_MAX_CONCENTRATION, MLPPolicy
+
+MANIFEST_FORMAT = "hola_ray.onnx/1"
+"""The version tag of the manifest."""
+
+OPSET = 17
+"""The ONNX operator set the graph is written in (onnxruntime ≥ 1.12 reads it)."""
+
+INPUT, OUTPUTS = "observation", ("action", "heading_change")
+
+
+class DeterministicActor(torch.nn.Module):
+    """`MLPPolicy.act` as a torch module: raw observations [N, D] → (action [N] in
+    [low, high], heading change [N] in radians)."""
+
+    def __init__(self, policy: MLPPolicy) -> None:
+        super().__init__()
+        self.layers = torch.nn.ModuleList()
+        for w, b in zip(policy.weights, policy.biases, strict=True):
+            layer = torch.nn.Linear(w.shape[1], w.shape[0])
+            layer.weight.data.copy_(w)
+            layer.bias.data.copy_(b)
+            self.layers.append(layer)
+        self.activation = policy.activation
+        self.dist = policy.dist
+        self.features = bool(policy.feature_indices)
+        self.register_buffer("indices", torch.tensor(policy.feature_indices, dtype=torch.long))
+        self.gain = policy.feature_gain
+        self.low, self.high = policy.low, policy.high
+        self.max_turn = policy.config.max_turn
+
+    def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        x = obs
+        if self.features:
+            x = torch.cat([x, torch.exp(-self.gain * x.index_select(1, self.indices))], dim=1)
+        last = len(self.layers) - 1
+        for k, layer in enumerate(self.layers):
+            x = layer(x)
+            if k < last:
+                x = self.activation(x)
+        if self.dist == "gaussian":
+            mean = x[:, 0]
+        else:
+            c = (torch.nn.functional.softplus(x) + 1.0).clamp(max=BETA_MAX_CONCENTRATION)
+            c1, c0 = c[:, 0], c[:, 1]
+            mean = 2.0 * (c1 / (c1 + c0)) - 1.0
+        action = self.low + (mean + 1.0) * ((self.high - self.low) / 2.0)
+        action = action.clamp(self.low, self.high)
+        return action, (2.0 * action - 1.0) * self.max_turn
+
+
+def export_onnx(policy: MLPPolicy, path: str | Path) -> Path:
+    """Write `policy`'s deterministic actor as an ONNX graph with a dynamic batch axis."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    actor = DeterministicActor(policy).eval()
+    example = torch.zeros((2, policy.layout.dim), dtype=torch.float32)
+    torch.onnx.export(
+        actor,
+        (example,),
+        str(path),
+        input_names=[INPUT],
+        output_names=list(OUTPUTS),
+        dynamic_axes={INPUT: {0: "batch"}, **{name: {0: "batch"} for name in OUTPUTS}},
+        opset_version=OPSET,
+        dynamo=False,
+    )
+    return path
+
+
+def observation_entries(config: PursuitConfig) -> list[dict[str, Any]]:
+    """One entry per observation index: what it measures, frame, units, scale and the
+    value it reads when unobserved, as a flight stack must fill it (SPEC §1)."""
+    layout = ObsLayout.from_config(config)
+    scale = config.obs_distance_scale
+    far = config.unobserved_distance
+    ego = "this drone's body frame: the angle from its heading, positive to its left (CCW)"
+    out: list[dict[str, Any]] = []
+
+    def entry(name: str, measures: str, frame: str, units: str, scaled: str, **more) -> None:
+        out.append(
+            {"index": len(out), "name": name, "measures": measures, "frame": frame}
+            | {"units": units, "scale": scaled}
+            | more
+        )
+
+    for e in range(config.n_evaders):
+        captured = f"reads {far} (and 0, 0 for the next two) once evader {e} is captured"
+        entry(
+            f"evader_{e}.distance",
+            f"distance from this drone to evader {e}",
+            "world (a length)",
+            "m",
+            f"divided by {scale}",
+            unobserved=captured,
+        )
+        entry(
+            f"evader_{e}.bearing",
+            f"direction to evader {e}",
+            ego,
+            "rad",
+            "divided by π, in [−1, 1]",
+            unobserved=0.0,
+        )
+        entry(
+            f"evader_{e}.heading",
+            f"evader {e}'s heading (direction of motion) minus this drone's heading",
+            ego,
+            "rad",
+            "divided by π, in [−1, 1]",
+            unobserved=0.0,
+        )
+    entry(
+        "obstacle.distance",
+        "distance to the nearest point of a wall, a bar, or a disabled (landed) teammate",
+        "world (a length)",
+        "m",
+        f"divided by {scale}",
+        unobserved="always observed",
+    )
+    entry(
+        "obstacle.bearing",
+        "direction to that nearest point",
+        ego,
+        "rad",
+        "divided by π, in [−1, 1]",
+        unobserved="always observed",
+    )
+    for j in range(config.n_pursuers - 1):
+        gone = (
+            f"reads {far} (and bearing 0) beyond {config.perception_range} m or once "
+            "that teammate is disabled"
+        )
+        entry(
+            f"teammate_{j}.distance",
+            f"distance to the {j}-th other pursuer, in seat order with this drone left out",
+            "world (a length)",
+            "m",
+            f"divided by {scale}",
+            unobserved=gone,
+        )
+        entry(
+            f"teammate_{j}.bearing",
+            "direction to that teammate",
+            ego,
+            "rad",
+            "divided by π, in [−1, 1]",
+            unobserved=0.0,
+        )
+    arena = (
+        "arena frame: origin at the lower-left corner, x right, y up "
+        f"({config.arena_width} × {config.arena_height} m)"
+    )
+    entry(
+        "own.x",
+        "this drone's x",
+        arena,
+        "m",
+        f"divided by {config.arena_width}",
+        unobserved="always observed",
+    )
+    entry(
+        "own.y",
+        "this drone's y",
+        arena,
+        "m",
+        f"divided by {config.arena_height}",
+        unobserved="always observed",
+    )
+    entry(
+        "own.cos_heading",
+        "cos of this drone's heading",
+        arena,
+        "1",
+        "none",
+        unobserved="always observed",
+    )
+    entry(
+        "own.sin_heading",
+        "sin of this drone's heading",
+        arena,
+        "1",
+        "none",
+        unobserved="always observed",
+    )
+    assert len(out) == layout.dim
+    return out
+
+
+def manifest(
+    policy: MLPPolicy,
+    onnx_path: Path,
+    source: Mapping[str, Any],
+) -> dict[str, Any]:
+    """What a flight stack needs to fly `onnx_path` without reading this code."""
+    config = policy.config
+    return {
+        "format": MANIFEST_FORMAT,
+        "onnx": {
+            "file": onnx_path.name,
+            "sha256": hashlib.sha256(onnx_path.read_bytes()).hexdigest(),
+            "opset": OPSET,
+            "input": {"name": INPUT, "shape": ["batch", policy.layout.dim], "dtype": "float32"},
+            "outputs": [
+                {"name": OUTPUTS[0], "shape": ["batch"], "dtype": "float32"},
+                {"name": OUTPUTS[1], "shape": ["batch"], "dtype": "float32"},
+            ],
+        },
+        "observation": observation_entries(config),
+        "action": {
+            "name": OUTPUTS[0],
+            "range": [policy.low, policy.high],
+            "meaning": (
+                "turn the heading by (2·action − 1)·max_turn (the graph's heading_change, "
+                "radians, positive to the left), then fly the control period along the new "
+                "heading at the pursuer speed"
+            ),
+            "max_turn_rad": config.max_turn,
+            "max_turn_deg": math.degrees(config.max_turn),
+            "speed_m_s": config.pursuer_speed,
+            "velocity_setpoint": "speed·(cos θ, sin θ) in the arena frame, θ the new heading",
+        },
+        "control_period_s": config.dt,
+        "heading": (
+            "the heading θ the observation's bearings and own.cos/sin_heading use is the one "
+            "the ground station integrates from the policy's heading changes, starting at "
+            "+y (π/2)"
+        ),
+        "unit_conventions": "metres, seconds, radians; arena frame origin at its lower-left corner",
+        "scenario": config.to_dict(),
+        "source": dict(source),
+    }
+
+
+def write_manifest(path: Path, data: Mapping[str, Any]) -> Path:
+    path.write_text(json.dumps(data, indent=1, ensure_ascii=False) + "\n")
+    return path
+
+
+def onnx_actions(onnx_path: str | Path, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(action, heading_change) of observations [N, D] by onnxruntime, on the CPU."""
+    return OnnxPolicy.session(onnx_path).run(
+        list(OUTPUTS), {INPUT: np.asarray(obs, dtype=np.float32)}
+    )
+
+
+def read_manifest(onnx_path: str | Path) -> dict[str, Any]:
+    """The manifest written beside an ONNX file (OUT.json for OUT.onnx), its hash checked."""
+    onnx_path = Path(onnx_path)
+    path = onnx_path.with_suffix(".json")
+    if not path.is_file():
+        raise ValueError(f"{onnx_path}: no manifest {path.name} beside it (write both with export)")
+    data = json.loads(path.read_text())
+    if data.get("format") != MANIFEST_FORMAT:
+        raise ValueError(f"{path}: not a {MANIFEST_FORMAT} manifest")
+    got = hashlib.sha256(onnx_path.read_bytes()).hexdigest()
+    if got != data["onnx"]["sha256"]:
+        raise ValueError(
+            f"{onnx_path}: sha256 {got[:12]}…, its manifest says {data['onnx']['sha256'][:12]}…"
+        )
+    return data
+
+
+class OnnxPolicy(Policy):
+    """A pursuer played from its ONNX file by onnxruntime, as a flight stack would."""
+
+    def __init__(self, onnx_path: str | Path, config: PursuitConfig | None = None) -> None:
+        data = read_manifest(onnx_path)
+        trained = PursuitConfig.from_dict(data["scenario"])
+        super().__init__(config or trained)
+        if (self.config.n_pursuers, self.config.n_evaders) != (
+            trained.n_pursuers,
+            trained.n_evaders,
+        ):
+            raise ValueError(
+                f"{onnx_path} flies {trained.n_pursuers} vs {trained.n_evaders}, not "
+                f"{self.config.n_pursuers} vs {self.config.n_evaders}"
+            )
+        self.name = Path(onnx_path).stem
+        self.manifest = data
+        self._session = self.session(onnx_path)
+
+    @staticmethod
+    def session(onnx_path: str | Path):
+        import onnxruntime
+
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = 1
+        return onnxruntime.InferenceSession(
+            str(onnx_path), options, providers=["CPUExecutionProvider"]
+        )
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        obs = self._check(obs)
+        return self._session.run([OUTPUTS[0]], {INPUT: obs})[0]
