@@ -13,6 +13,8 @@ seats are copies of it, or `--teammates` (registry names, pool member ids or fil
 seat). Prints both columns; the last line is JSON: success, collision, length and
 kinematic_success, kinematic_collision, kinematic_length (and their standard errors).
 `--replay OUT.png` draws one episode flown beside the arena's replay of it.
+`--identify` fits the arena's response model to the flown drone instead
+(env.pursuer_response and env.pursuer_response_delay, for training closer to it).
 """
 
 from __future__ import annotations
@@ -54,19 +56,28 @@ def learner(spec: str, evaders: int | None) -> tuple[Any, PursuitConfig]:
     return policy, config
 
 
+def kinematic(config: PursuitConfig) -> PursuitConfig:
+    """`config` with the paper's kinematics (a heading change acts at once)."""
+    return dataclasses.replace(config, pursuer_response=1.0, pursuer_response_delay=0)
+
+
 def fly(
     team: list[Any], config: PursuitConfig, episodes: int, seed: int, batch: int = 16
 ) -> dict[str, Any]:
-    """Both columns for `team` on the same episodes: flown and kinematic."""
+    """Both columns for `team` on the same episodes: flown, and in the paper's kinematic
+    arena; and in `config`'s own arena when it has a response model (model_…)."""
     from hola_ray.evaluation.rollout import rollout
     from hola_ray.flight import Crazyflies
 
     start = time.perf_counter()
     flown = rollout(config, team, episodes, seed=seed, batch_size=batch, dynamics=Crazyflies)
     flight_s = time.perf_counter() - start
-    kinematic = rollout(config, team, episodes, seed=seed, batch_size=batch)
+    paper = kinematic(config)
+    columns = [("", flown), ("kinematic_", rollout(paper, team, episodes, seed=seed))]
+    if paper != config:  # trained with a response model: its own arena too
+        columns.append(("model_", rollout(config, team, episodes, seed=seed)))
     out: dict[str, Any] = {"episodes": episodes}
-    for prefix, result in (("", flown), ("kinematic_", kinematic)):
+    for prefix, result in columns:
         summary = result.summary()
         for key in ("success", "collision", "length"):
             out[f"{prefix}{key}"] = round(summary[key], 4)
@@ -79,7 +90,12 @@ def fly(
 def main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(prog="python -m hola_ray.fly", description=__doc__)
     parser.add_argument(
-        "policy", help="an exported .onnx file, or a run directory, .pt or member id"
+        "policy", nargs="?", help="an exported .onnx file, or a run directory, .pt or member id"
+    )
+    parser.add_argument(
+        "--identify",
+        action="store_true",
+        help="fit the arena's response model (env.pursuer_response, _delay) to the flown drone",
     )
     parser.add_argument("--teammates", nargs="+", default=None, help="the other seats' policies")
     parser.add_argument("--episodes", type=int, default=32)
@@ -97,6 +113,13 @@ def main(argv: list[str] | None = None) -> int:
         import pybullet  # noqa: F401
     except ImportError:
         return fail(f"flying needs pybullet: {INSTALL}")
+    if args.identify:
+        from hola_ray.flight.identify import identify
+
+        print(json.dumps(identify()))
+        return 0
+    if args.policy is None:
+        return fail("give the policy to fly (an .onnx file, run directory, .pt or member id)")
     try:
         seat0, config = learner(args.policy, args.evaders)
         if args.horizon is not None:

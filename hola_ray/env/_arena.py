@@ -46,13 +46,15 @@ F_OBSTACLE_REACH = 30
 F_MATE_PENALTY = 31
 F_MATE_REACH = 32
 F_APPROACH_OWN = 33
-N_FLOAT_PARAMS = 34
+F_RESPONSE = 34
+N_FLOAT_PARAMS = 35
 
 # ---- packed integer parameters ------------------------------------------------------
 I_HORIZON = 0
 I_HOLD_MIN = 1
 I_HOLD_MAX = 2
-N_INT_PARAMS = 3
+I_RESPONSE_DELAY = 3
+N_INT_PARAMS = 4
 
 
 class Params(NamedTuple):
@@ -83,6 +85,8 @@ class Arena(NamedTuple):
     captures: np.ndarray  # [B] int64 evaders captured
     ep_return: np.ndarray  # [B, n_p] summed rewards
     rng: np.ndarray  # [B] uint64 SplitMix64 stream states
+    pvel: np.ndarray  # [B, n_p, 2] pursuer velocities (the response model; else unused)
+    pcmd: np.ndarray  # [B, n_p, 2] the velocity commanded a step ago (response delay 1)
 
 
 class StepOut(NamedTuple):
@@ -136,7 +140,11 @@ def pack_params(config: PursuitConfig) -> Params:
     fp[F_E_MAX_TURN] = ev.max_turn
     fp[F_E_MIN_CLEAR] = ev.min_clearance
     fp[F_SPAWN_SEP] = config.spawn_separation
-    ip = np.array([config.horizon, ev.wander_hold_min, ev.wander_hold_max], dtype=np.int64)
+    fp[F_RESPONSE] = config.pursuer_response
+    ip = np.array(
+        [config.horizon, ev.wander_hold_min, ev.wander_hold_max, config.pursuer_response_delay],
+        dtype=np.int64,
+    )
     rects = np.array(
         [(cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2) for cx, cy, w, h in config.obstacles],
         dtype=np.float64,

@@ -32,6 +32,7 @@ from hola_ray.env._arena import (
     F_OBSTACLE_PENALTY,
     F_OBSTACLE_REACH,
     F_PERCEPTION,
+    F_RESPONSE,
     F_SAFE,
     F_SPAWN_SEP,
     F_UNOBSERVED,
@@ -39,6 +40,7 @@ from hola_ray.env._arena import (
     F_V_P,
     F_WIDTH,
     I_HORIZON,
+    I_RESPONSE_DELAY,
     Arena,
     Params,
     StepOut,
@@ -75,7 +77,7 @@ def reset_episode(b, p, s):
     fp, ip, rects, spawn = p
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
-     t, done, collided, captures, ep_return, rng) = s
+     t, done, collided, captures, ep_return, rng, pvel, pcmd) = s
     # fmt: on
     _place(rng, b, ppos[b], ppos.shape[1], spawn[0], fp[F_SPAWN_SEP])
     _place(rng, b, epos[b], epos.shape[1], spawn[1], fp[F_SPAWN_SEP])
@@ -83,6 +85,9 @@ def reset_episode(b, p, s):
         phead[b, i] = 0.5 * math.pi
         pactive[b, i] = True
         ep_return[b, i] = 0.0
+        for k in range(2):  # at rest, nothing commanded yet (the response model)
+            pvel[b, i, k] = 0.0
+            pcmd[b, i, k] = 0.0
     for e in range(epos.shape[1]):
         ehead[b, e] = -0.5 * math.pi
         ealive[b, e] = True
@@ -113,7 +118,7 @@ def observe(b, p, s, obs):
     fp, ip, rects, spawn = p
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
-     t, done, collided, captures, ep_return, rng) = s
+     t, done, collided, captures, ep_return, rng, pvel, pcmd) = s
     # fmt: on
     n_p = ppos.shape[1]
     n_e = epos.shape[1]
@@ -188,6 +193,8 @@ def _move_pursuers(b, actions, placed, p, s):
     where it flew."""
     fp = p.fp
     step_p = fp[F_V_P] * fp[F_DT]
+    beta = fp[F_RESPONSE]
+    delayed = p.ip[I_RESPONSE_DELAY] > 0
     for i in range(s.ppos.shape[1]):
         if s.pactive[b, i]:
             h = wrap(s.phead[b, i] + (2.0 * actions[b, i] - 1.0) * fp[F_MAX_TURN])
@@ -195,9 +202,29 @@ def _move_pursuers(b, actions, placed, p, s):
             if placed.shape[0] > 0:
                 s.ppos[b, i, 0] = placed[b, i, 0]
                 s.ppos[b, i, 1] = placed[b, i, 1]
-            else:
+            elif beta >= 1.0 and not delayed:
                 s.ppos[b, i, 0] += step_p * math.cos(h)
                 s.ppos[b, i, 1] += step_p * math.sin(h)
+            else:
+                _respond(b, i, h, beta, delayed, fp, s)
+
+
+@njit(cache=True, inline="always")
+def _respond(b, i, h, beta, delayed, fp, s):
+    """The response model: the pursuer's velocity goes `beta` of the way to the velocity
+    its heading commands (the one commanded a step ago when `delayed`), then it moves."""
+    cx = fp[F_V_P] * math.cos(h)
+    cy = fp[F_V_P] * math.sin(h)
+    tx, ty = cx, cy
+    if delayed:
+        tx = s.pcmd[b, i, 0]
+        ty = s.pcmd[b, i, 1]
+        s.pcmd[b, i, 0] = cx
+        s.pcmd[b, i, 1] = cy
+    s.pvel[b, i, 0] += beta * (tx - s.pvel[b, i, 0])
+    s.pvel[b, i, 1] += beta * (ty - s.pvel[b, i, 1])
+    s.ppos[b, i, 0] += fp[F_DT] * s.pvel[b, i, 0]
+    s.ppos[b, i, 1] += fp[F_DT] * s.pvel[b, i, 1]
 
 
 @njit(cache=True, inline="always")

@@ -201,6 +201,12 @@ class PursuitConfig:
     """constant evader speed, m/s"""
     max_turn: float = math.pi / 4
     """a pursuer action a ∈ [0, 1] turns the heading by (2a − 1)·max_turn"""
+    pursuer_response: float = 1.0
+    """the share of the way from its velocity to the commanded one (pursuer_speed along
+    the heading) a pursuer's velocity goes each step: 1 = at once (the paper's
+    kinematics); a Crazyflie measures about 0.37 with response_delay 1 (docs/flight.md)"""
+    pursuer_response_delay: int = 0
+    """steps before a commanded velocity starts to act: 0 or 1"""
     capture_distance: float = 0.2
     """d_c: an active pursuer nearer than this captures an evader"""
     perception_range: float = 2.0
@@ -252,6 +258,12 @@ class PursuitConfig:
                 value,
             )
         require(self.max_turn <= math.pi, "max_turn", "in (0, π]", self.max_turn)
+        value = self.pursuer_response
+        ok = isinstance(value, int | float) and not isinstance(value, bool)
+        require(ok and 0 < value <= 1, "pursuer_response", "a number in (0, 1]", value)
+        value = self.pursuer_response_delay
+        ok = isinstance(value, int) and not isinstance(value, bool)
+        require(ok and value in (0, 1), "pursuer_response_delay", "0 or 1", value)
         diagonal = math.hypot(self.arena_width, self.arena_height) / self.obs_distance_scale
         require(
             self.unobserved_distance > diagonal,

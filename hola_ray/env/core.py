@@ -59,6 +59,8 @@ class BatchedPursuit:
             captures=np.zeros(B, dtype=np.int64),
             ep_return=np.zeros((B, n_p)),
             rng=_rng.seed_state(np.arange(B)),
+            pvel=np.zeros((B, n_p, 2)),
+            pcmd=np.zeros((B, n_p, 2)),
         )
         self._out = _kernels.StepOut(
             obs=np.zeros((B, n_p, self.layout.dim), dtype=np.float32),
