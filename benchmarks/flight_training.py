@@ -1,0 +1,87 @@
+"""Flown as Crazyflies: learners trained in the kinematic arena against learners trained
+with the fitted response model (env.pursuer_response), seed by seed.
+
+    python benchmarks/flight_training.py EPISODES KIN_RUN,KIN_RUN,... RESP_RUN,RESP_RUN,...
+
+Each run's best.pt flies (and plays the paper's kinematic arena) on the same episode seeds
+in three copies, beside the validation teammates (sp-v1, sp-v2: what a choice may rest on)
+and beside Greedy + VICSEK (evaluation teammates: measured, never chosen on). The runs pair
+up in the order given (training seed i of each arm); the difference response − kinematic
+is averaged over the pairs, with a 95 % bootstrap interval that resamples the episodes
+within each pair (with few pairs it leaves out most of the seed-to-seed noise: read the
+per-pair values beside it).
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from hola_ray.evaluation.pools import validation_mates
+from hola_ray.evaluation.rollout import rollout
+from hola_ray.flight import Crazyflies
+from hola_ray.fly import kinematic
+from hola_ray.policies.learned import MLPPolicy
+from hola_ray.policies.registry import make_policy
+
+TEAMS = ("copies", "validation", "hand")
+
+
+def teams(policy, config):
+    hand = [make_policy("greedy", config), make_policy("vicsek", config)]
+    return {
+        "copies": [policy] * config.n_pursuers,
+        "validation": [policy, *validation_mates(config, config.n_pursuers - 1)],
+        "hand": [policy, *hand],
+    }
+
+
+def main(argv: list[str]) -> int:
+    episodes = int(argv[0])
+    arms = {"kinematic": argv[1].split(","), "response": argv[2].split(",")}
+    out = {}
+    for arm, runs in arms.items():
+        for run in runs:
+            policy = MLPPolicy.load(f"{run}/best.pt")
+            config = kinematic(policy.config)
+            for label, team in teams(policy, config).items():
+                flown = rollout(config, team, episodes, seed=0, batch_size=16, dynamics=Crazyflies)
+                arena = rollout(config, team, episodes, seed=0, batch_size=16)
+                out[(arm, run, label)] = {
+                    "succ": flown.success,
+                    "coll": flown.collision,
+                    "own": flown.crashed[:, 0],
+                }
+                print(
+                    f"{arm} {run} {label}: flown success {flown.success.mean():.3f} collision "
+                    f"{flown.collision.mean():.3f} own crash {flown.crashed[:, 0].mean():.3f} | "
+                    f"arena success {arena.success.mean():.3f} collision "
+                    f"{arena.collision.mean():.3f}",
+                    flush=True,
+                )
+    rng = np.random.default_rng(0)
+    pairs = list(zip(arms["kinematic"], arms["response"], strict=True))
+    for label in TEAMS:
+        for key in ("succ", "coll", "own"):
+            diffs = [
+                out[("response", b, label)][key].astype(float)
+                - out[("kinematic", a, label)][key].astype(float)
+                for a, b in pairs
+            ]
+            mean = float(np.mean([d.mean() for d in diffs]))
+            boots = [
+                np.mean([d[rng.integers(0, len(d), len(d))].mean() for d in diffs])
+                for _ in range(4000)
+            ]
+            lo, hi = np.percentile(boots, [2.5, 97.5])
+            per = ", ".join(f"{d.mean() * 100:+.1f}" for d in diffs)
+            print(
+                f"{label} {key}: response - kinematic = {mean * 100:+.1f} "
+                f"[{lo * 100:+.1f}, {hi * 100:+.1f}] (per seed pair: {per})"
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
