@@ -1,7 +1,8 @@
-"""Flown as Crazyflies: learners trained in the kinematic arena against learners trained
-with the fitted response model (env.pursuer_response), seed by seed.
+"""Flown as Crazyflies: learners trained in the paper's arena ("kinematic") against learners
+trained in a changed one ("response": the fitted response model env.pursuer_response, or
+any other env setting), seed by seed, every one judged by the paper's rules.
 
-    python benchmarks/flight_training.py EPISODES KIN_RUN,KIN_RUN,... RESP_RUN,RESP_RUN,...
+    python benchmarks/flight_training.py EPISODES BASE_RUN,BASE_RUN,... NEW_RUN,NEW_RUN,...
 
 Each run's best.pt flies (and plays the paper's kinematic arena) on the same episode seeds
 in three copies, beside the validation teammates (sp-v1, sp-v2: what a choice may rest on)
@@ -18,10 +19,10 @@ import sys
 
 import numpy as np
 
+from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.pools import validation_mates
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.flight import Crazyflies
-from hola_ray.fly import kinematic
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.policies.registry import make_policy
 
@@ -44,7 +45,9 @@ def main(argv: list[str]) -> int:
     for arm, runs in arms.items():
         for run in runs:
             policy = MLPPolicy.load(f"{run}/best.pt")
-            config = kinematic(policy.config)
+            # judged by the paper's rules whatever arena it trained in
+            trained = policy.config
+            config = PursuitConfig(n_pursuers=trained.n_pursuers, n_evaders=trained.n_evaders)
             for label, team in teams(policy, config).items():
                 flown = rollout(config, team, episodes, seed=0, batch_size=16, dynamics=Crazyflies)
                 arena = rollout(config, team, episodes, seed=0, batch_size=16)
