@@ -21,16 +21,13 @@ import argparse
 import dataclasses
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 from hola_ray.evaluation.pools import MEMBERS
-from hola_ray.evaluation.rollout import rollout
 from hola_ray.export import resolve
-from hola_ray.flight import Crazyflies
-from hola_ray.fly import kinematic
+from hola_ray.fly import columns
 from hola_ray.replay import resolve as by_name
 
 HAND = ("greedy", "vicsek")
@@ -43,15 +40,12 @@ def paired(flown: np.ndarray, arena: np.ndarray) -> tuple[float, float]:
 
 
 def cell(team, config, episodes: int, seed: int) -> dict:
-    start = time.perf_counter()
-    flown = rollout(config, team, episodes, seed=seed, batch_size=16, dynamics=Crazyflies)
-    took = time.perf_counter() - start
-    arena = rollout(kinematic(config), team, episodes, seed=seed, batch_size=16)
-    out = {"episodes": episodes, "flight_s": round(took, 1)}
-    if kinematic(config) != config:  # trained with a response model: its own arena too
-        model = rollout(config, team, episodes, seed=seed, batch_size=16)
+    played = columns(team, config, episodes, seed)
+    flown, arena = played[""], played["kinematic_"]
+    out = {"episodes": episodes, "flight_s": round(played["flight_s"], 1)}
+    if "model_" in played:  # trained with a response model: its own arena too
         out |= {
-            f"model_{k}": round(float(np.mean(getattr(model, k))), 4)
+            f"model_{k}": round(float(np.mean(getattr(played["model_"], k))), 4)
             for k in ("success", "collision", "length")
         }
     for key in ("success", "collision", "length"):

@@ -21,8 +21,7 @@ import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.pools import validation_mates
-from hola_ray.evaluation.rollout import rollout
-from hola_ray.flight import Crazyflies
+from hola_ray.fly import columns
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.policies.registry import make_policy
 
@@ -49,8 +48,8 @@ def main(argv: list[str]) -> int:
             trained = policy.config
             config = PursuitConfig(n_pursuers=trained.n_pursuers, n_evaders=trained.n_evaders)
             for label, team in teams(policy, config).items():
-                flown = rollout(config, team, episodes, seed=0, batch_size=16, dynamics=Crazyflies)
-                arena = rollout(config, team, episodes, seed=0, batch_size=16)
+                played = columns(team, config, episodes, seed=0)
+                flown, arena = played[""], played["kinematic_"]
                 out[(arm, run, label)] = {
                     "succ": flown.success,
                     "coll": flown.collision,

@@ -39,7 +39,8 @@ def resolve(policy: str, best: bool = False) -> tuple[Any, dict[str, Any]]:
     if not path.exists() and policy in MEMBERS:
         pool = next(p for p, ids in POOLS.items() if policy in ids)
         folder = pool_dir(pool)
-        entry = read_manifest(folder)["members"][policy]
+        pool_manifest = read_manifest(folder)
+        entry = pool_manifest["members"][policy]
         if entry["kind"] != "ppo":
             raise ValueError(f"{policy} is a {entry['kind']} member: only MLP learners export")
         file = folder / entry["file"]
@@ -50,7 +51,7 @@ def resolve(policy: str, best: bool = False) -> tuple[Any, dict[str, Any]]:
             "member": policy,
             "run": None,
             "generation": None,
-            "commit": read_manifest(folder).get("commit"),
+            "commit": pool_manifest.get("commit"),
         }
     else:
         if not path.exists():

@@ -61,11 +61,12 @@ def kinematic(config: PursuitConfig) -> PursuitConfig:
     return dataclasses.replace(config, pursuer_response=1.0, pursuer_response_delay=0)
 
 
-def fly(
+def columns(
     team: list[Any], config: PursuitConfig, episodes: int, seed: int, batch: int = 16
 ) -> dict[str, Any]:
-    """Both columns for `team` on the same episodes: flown, and in the paper's kinematic
-    arena; and in `config`'s own arena when it has a response model (model_…)."""
+    """The same episodes played three ways: {"" (flown as Crazyflies), "kinematic_" (the
+    paper's arena), and "model_" (`config`'s own arena, only when it has a response
+    model)} → its `RolloutResult`; and "flight_s", the flight's wall time."""
     from hola_ray.evaluation.rollout import rollout
     from hola_ray.flight import Crazyflies
 
@@ -73,11 +74,21 @@ def fly(
     flown = rollout(config, team, episodes, seed=seed, batch_size=batch, dynamics=Crazyflies)
     flight_s = time.perf_counter() - start
     paper = kinematic(config)
-    columns = [("", flown), ("kinematic_", rollout(paper, team, episodes, seed=seed))]
+    out = {"": flown, "kinematic_": rollout(paper, team, episodes, seed=seed, batch_size=batch)}
     if paper != config:  # trained with a response model: its own arena too
-        columns.append(("model_", rollout(config, team, episodes, seed=seed)))
+        out["model_"] = rollout(config, team, episodes, seed=seed, batch_size=batch)
+    return out | {"flight_s": flight_s}
+
+
+def fly(
+    team: list[Any], config: PursuitConfig, episodes: int, seed: int, batch: int = 16
+) -> dict[str, Any]:
+    """The `columns` of `team` summarised: success, collision, length (± s.e.) and seat
+    0's crash rate of each, prefixed by its column."""
+    played = columns(team, config, episodes, seed, batch)
+    flight_s = played.pop("flight_s")
     out: dict[str, Any] = {"episodes": episodes}
-    for prefix, result in columns:
+    for prefix, result in played.items():
         summary = result.summary()
         for key in ("success", "collision", "length"):
             out[f"{prefix}{key}"] = round(summary[key], 4)

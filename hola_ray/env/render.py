@@ -74,9 +74,9 @@ def render_frame(config: PursuitConfig, core: BatchedPursuit, b: int) -> np.ndar
     return image
 
 
-def plot_trajectory(config: PursuitConfig, traj: Trajectory, path: str) -> None:
-    """A PNG of every drone's path with capture (★) and collision (✕) marks."""
-    fig, ax = _figure(config)
+def draw_trajectory(ax: Axes, config: PursuitConfig, traj: Trajectory) -> None:
+    """Every drone's path with capture (★) and collision (✕) marks, and the metrics as the
+    title, on `ax` (the arena already drawn)."""
     for i in range(config.n_pursuers):
         colour = _colour(PURSUER_COLOURS, i)
         xy = traj.pursuer_pos[:, i]
@@ -103,6 +103,12 @@ def plot_trajectory(config: PursuitConfig, traj: Trajectory, path: str) -> None:
     ax.set_title(
         f"success={m['success']} collision={m['collision']} length={m['length']}", fontsize=9
     )
+
+
+def plot_trajectory(config: PursuitConfig, traj: Trajectory, path: str) -> None:
+    """A PNG of every drone's path with capture (★) and collision (✕) marks."""
+    fig, ax = _figure(config)
+    draw_trajectory(ax, config, traj)
     fig.subplots_adjust(bottom=0.1)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, fontsize=6, frameon=False)
     fig.savefig(path)

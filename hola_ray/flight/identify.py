@@ -36,7 +36,7 @@ def identify(
     v, c = np.array(velocities), np.array(commands)  # [steps + 1, M, 2], [steps, M, 2]
     out: dict[str, float] = {}
     for delay in (0, 1):
-        x = (c[1 - delay : steps - delay] if delay else c[1:]) - v[1:steps]
+        x = c[1 - delay : steps - delay] - v[1:steps]  # c[k − d] − v[k], k = 1 … steps − 1
         y = v[2:] - v[1:steps]
         x, y = x.ravel(), y.ravel()
         beta = float(x @ y / (x @ x))

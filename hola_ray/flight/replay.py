@@ -11,7 +11,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from hola_ray.env.config import PursuitConfig
-from hola_ray.env.render import EVADER_COLOURS, PURSUER_COLOURS, draw_arena
+from hola_ray.env.render import PURSUER_COLOURS, draw_arena, draw_trajectory
 from hola_ray.env.trajectory import Trajectory
 from hola_ray.evaluation.trajectory import record
 from hola_ray.flight.dynamics import Crazyflies
@@ -20,27 +20,8 @@ from hola_ray.policies.base import Policy
 
 def _top_view(ax, config: PursuitConfig, traj: Trajectory, title: str) -> None:
     draw_arena(ax, config)
-    for i in range(config.n_pursuers):
-        colour = PURSUER_COLOURS[i % len(PURSUER_COLOURS)]
-        xy = traj.pursuer_pos[:, i]
-        ax.plot(xy[:, 0], xy[:, 1], "-", color=colour, lw=1.1, label=f"P{i} {traj.policy_names[i]}")
-        ax.plot(*xy[0], "o", color=colour, ms=5)
-    for e in range(config.n_evaders):
-        colour = EVADER_COLOURS[e % len(EVADER_COLOURS)]
-        alive = np.flatnonzero(traj.evader_alive[:, e])
-        xy = traj.evader_pos[: (int(alive[-1]) + 2 if alive.size else 1), e]
-        ax.plot(xy[:, 0], xy[:, 1], "-", color=colour, lw=1.1, label=f"E{e}")
-    for step, _, where in traj.captures:
-        ax.plot(*where, "*", color="gold", mec="black", ms=14, zorder=5)
-        ax.annotate(f"t={step}", where, xytext=(4, 4), textcoords="offset points", fontsize=7)
-    for step, _, where in traj.collisions:
-        ax.plot(*where, "X", color="black", ms=10, zorder=5)
-        ax.annotate(f"t={step}", where, xytext=(4, -9), textcoords="offset points", fontsize=7)
-    m = traj.metrics
-    ax.set_title(
-        f"{title}\nsuccess={m['success']} collision={m['collision']} length={m['length']}",
-        fontsize=9,
-    )
+    draw_trajectory(ax, config, traj)
+    ax.set_title(f"{title}\n{ax.get_title()}", fontsize=9)
 
 
 def draw_flight(config: PursuitConfig, team: Sequence[Policy], seed: int, path: str | Path) -> dict:

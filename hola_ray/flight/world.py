@@ -67,6 +67,10 @@ class Quadrotors:
         self.rotors = np.full((self.m, 4), model.hover_rpm)  # spinning, hovering
         self.live = np.ones(self.m, dtype=bool)  # drones still simulated
         self.steps = 0
+        m = self.m
+        self.pos, self.vel = np.zeros((m, 3)), np.zeros((m, 3))
+        self.rpy, self.rates = np.zeros((m, 3)), np.zeros((m, 3))
+        self.rot = np.tile(np.eye(3), (m, 1, 1))
         self._read()
 
     def close(self) -> None:
@@ -81,12 +85,8 @@ class Quadrotors:
             pass
 
     def _read(self) -> None:
+        """The live drones' state from pybullet into pos, vel, rot, rpy and body rates."""
         pb, cid = self.p, self.client
-        m = self.m
-        if not hasattr(self, "pos"):
-            self.pos, self.vel = np.zeros((m, 3)), np.zeros((m, 3))
-            self.rpy, self.rates = np.zeros((m, 3)), np.zeros((m, 3))
-            self.rot = np.tile(np.eye(3), (m, 1, 1))
         for k in np.flatnonzero(self.live):
             body = self.bodies[k]
             pos, quat = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
