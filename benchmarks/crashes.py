@@ -2,7 +2,7 @@
 reach at the step it happened.
 
     python benchmarks/crashes.py POLICY [POLICY ...] [--teammates copies|validation|NAME NAME]
-        [--episodes 200] [--seed 5]
+        [--episodes 200] [--seed 5] [--flown]
 
 POLICY: a run directory (its learner.pt), a generation folder or an export file, played in
 its own trained scenario. The learner sits in seat 0; its teammates are its own copies
@@ -11,7 +11,9 @@ teammates (`validation`, what training may see) or the hand-written policies nam
 crash is a `wall` (within the safe radius of the arena's edge), a `bar` (of an obstacle
 bar), a `mate` (another active pursuer within the pursuer–pursuer distance) or a `wreck`
 (anything else: a disabled pursuer's last position). Prints one line per policy and as its
-last line one JSON object. It measures; it never chooses a setting.
+last line one JSON object. It measures; it never chooses a setting. `--flown` flies the
+same episodes as Crazyflies (`hola_ray.flight`, judged on the drones' true positions) and
+prints both: what the drones hit that the arena's pursuers did not.
 """
 
 from __future__ import annotations
@@ -42,12 +44,14 @@ def bar_distance(config: PursuitConfig, p: np.ndarray) -> float:
     return best
 
 
-def crashes(config: PursuitConfig, team: list, episodes: int, seed: int) -> dict:
-    """Play `episodes` episodes with `team` (one policy per seat) and classify every crash."""
+def crashes(config: PursuitConfig, team: list, episodes: int, seed: int, dynamics=None) -> dict:
+    """Play `episodes` episodes with `team` (one policy per seat) and classify every crash;
+    `dynamics` as `rollout` takes it (`hola_ray.flight.Crazyflies` flies them)."""
     n_p = config.n_pursuers
     team = seated(team)
     env = BatchedPursuit(config, episodes)
     obs = env.reset(seeds=episode_seeds(seed, episodes))
+    fly = dynamics(env) if dynamics is not None else None
     for policy in team:
         policy.reset(np.ones(episodes, dtype=bool))
     causes = np.zeros((n_p, len(CAUSES)), dtype=int)
@@ -57,7 +61,8 @@ def crashes(config: PursuitConfig, team: list, episodes: int, seed: int) -> dict
     while not env.done.all():
         actions = np.stack([team[i].act(obs[:, i]) for i in range(n_p)], axis=1)
         before = env.pursuer_active & ~env.done[:, None]
-        obs = env.step(actions.reshape(episodes, n_p)).obs
+        actions = actions.reshape(episodes, n_p)
+        obs = env.step(actions, fly(actions) if fly is not None else None).obs
         for b, i in zip(*np.nonzero(before & ~env.pursuer_active), strict=True):
             p = env.pursuer_pos[b, i]
             wall = min(p[0], config.arena_width - p[0], p[1], config.arena_height - p[1])
@@ -100,6 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--teammates", nargs="+", default=["copies"])
     parser.add_argument("--episodes", type=int, default=200)
     parser.add_argument("--seed", type=int, default=5)
+    parser.add_argument("--flown", action="store_true", help="also flown as Crazyflies")
     args = parser.parse_args(argv)
     out = {}
     for path in args.policies:
@@ -120,14 +126,26 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 2
-        r = crashes(config, [learner, *mates], args.episodes, args.seed)
-        out[str(path)] = r
-        print(
-            f"{path}: success {r['success']:.1%}, collision {r['collision']:.1%}, crashes "
-            f"{r['crashes']} (the learner's {r['learner_crashes']}), per seat "
-            f"{r['seat_crash_rate']}, at step {r['crash_step_quartiles']} (quartiles); "
-            f"teammates flying when the learner crashed {r['learner_mates_left_at_crash']}"
-        )
+        team = [learner, *mates]
+        if args.flown:
+            from hola_ray.flight import Crazyflies
+            from hola_ray.fly import kinematic
+
+            config = kinematic(config)  # the arena column plays the paper's kinematics
+            played = {
+                "arena ": crashes(config, team, args.episodes, args.seed),
+                "flown ": crashes(config, team, args.episodes, args.seed, Crazyflies),
+            }
+        else:
+            played = {"": crashes(config, team, args.episodes, args.seed)}
+        for column, r in played.items():
+            out[f"{column}{path}"] = r
+            print(
+                f"{column}{path}: success {r['success']:.1%}, collision {r['collision']:.1%}, "
+                f"crashes {r['crashes']} (the learner's {r['learner_crashes']}), per seat "
+                f"{r['seat_crash_rate']}, at step {r['crash_step_quartiles']} (quartiles); "
+                f"teammates flying when the learner crashed {r['learner_mates_left_at_crash']}"
+            )
     print(json.dumps(out))
     return 0
 

@@ -2,17 +2,19 @@
 same seeds and teams (issue 23's table).
 
     python benchmarks/flight_gap.py POLICY [POLICY ...] [--episodes 64] [--seed 0]
-        [--evaders 1 2] [--json OUT.json]
+        [--evaders 1 2] [--json OUT.json] [--guard]
 
 POLICY: a run directory (`RUN:best` for its best.pt), a generation folder, an export file
 or a pool member id. Each policy flies in three copies and beside Greedy + VICSEK (the
 policy in seat 0), in its own scenario; a pool member also in every scenario of
 `--evaders` (adapted as the evaluation adapts it). Greedy and VICSEK are evaluation
 teammates: this measures, it never chooses a setting. Per cell: success, collision and
-length flown and in the paper's kinematic arena, and the paired difference (flown − arena)
-with a 95 % interval over the episodes; for a learner trained with a response model
+length flown and in the paper's kinematic arena, the paired difference (flown − arena)
+with a 95 % interval over the episodes, and who crashed (seat 0; a teammate, the mean over
+the other seats); for a learner trained with a response model
 (env.pursuer_response) also its own arena's figures (model_…, in the JSON). Prints a
-Markdown table; the last line is one JSON object.
+Markdown table; the last line is one JSON object. `--guard` flies every drone through the
+ground station's safety filter (`hola_ray.flight.guard`).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import numpy as np
 
 from hola_ray.evaluation.pools import MEMBERS
 from hola_ray.export import resolve
+from hola_ray.flight.guard import Guard
 from hola_ray.fly import columns
 from hola_ray.replay import resolve as by_name
 
@@ -39,8 +42,8 @@ def paired(flown: np.ndarray, arena: np.ndarray) -> tuple[float, float]:
     return float(d.mean()), float(1.96 * d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
 
 
-def cell(team, config, episodes: int, seed: int) -> dict:
-    played = columns(team, config, episodes, seed)
+def cell(team, config, episodes: int, seed: int, guard=None) -> dict:
+    played = columns(team, config, episodes, seed, guard=guard)
     flown, arena = played[""], played["kinematic_"]
     out = {"episodes": episodes, "flight_s": round(played["flight_s"], 1)}
     if "model_" in played:  # trained with a response model: its own arena too
@@ -57,8 +60,10 @@ def cell(team, config, episodes: int, seed: int) -> dict:
             f"{key}_gap": round(gap, 4),
             f"{key}_gap_95": round(half, 4),
         }
-    out["crash_seat0"] = round(float(flown.crashed[:, 0].mean()), 4)
-    out["kinematic_crash_seat0"] = round(float(arena.crashed[:, 0].mean()), 4)
+    for prefix, result in (("", flown), ("kinematic_", arena)):
+        out[f"{prefix}crash_seat0"] = round(float(result.crashed[:, 0].mean()), 4)
+        # each teammate's crash rate, averaged over their seats
+        out[f"{prefix}crash_mates"] = round(float(result.crashed[:, 1:].mean()), 4)
     return out
 
 
@@ -69,13 +74,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--evaders", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--guard", action="store_true", help="fly with the safety filter")
     args = parser.parse_args(argv)
+    guard = Guard() if args.guard else None
     rows = []
     print(
         "| policy | scenario | team | success flown / arena (gap) | collision flown / arena "
-        "(gap) | length flown / arena | seat 0 crashed flown / arena |"
+        "(gap) | length flown / arena | seat 0 crashed flown / arena | a teammate crashed "
+        "flown / arena |"
     )
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for spec in args.policies:
         best = spec.endswith(":best")
         name = spec.removesuffix(":best")
@@ -89,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
                 team = [seat0] * config.n_pursuers
                 if mates is not None:
                     team = [seat0, *(by_name(m, config) for m in mates)]
-                r = cell(team, config, args.episodes, args.seed)
+                r = cell(team, config, args.episodes, args.seed, guard)
                 scenario = f"{config.n_pursuers} vs {config.n_evaders}"
                 rows.append({"policy": spec, "scenario": scenario, "team": label} | r)
                 print(
@@ -99,10 +107,11 @@ def main(argv: list[str] | None = None) -> int:
                     f"{r['collision']:.0%} / {r['kinematic_collision']:.0%} "
                     f"({r['collision_gap'] * 100:+.0f} ± {r['collision_gap_95'] * 100:.0f}) | "
                     f"{r['length']:.0f} / {r['kinematic_length']:.0f} | "
-                    f"{r['crash_seat0']:.0%} / {r['kinematic_crash_seat0']:.0%} |",
+                    f"{r['crash_seat0']:.0%} / {r['kinematic_crash_seat0']:.0%} | "
+                    f"{r['crash_mates']:.0%} / {r['kinematic_crash_mates']:.0%} |",
                     flush=True,
                 )
-    result = {"episodes": args.episodes, "seed": args.seed, "cells": rows}
+    result = {"episodes": args.episodes, "seed": args.seed, "guard": args.guard, "cells": rows}
     if args.json is not None:
         args.json.write_text(json.dumps(result, indent=1))
     print(json.dumps(result))

@@ -12,7 +12,8 @@ directory, generation folder, .pt file or pool member id). It sits in seat 0; th
 seats are copies of it, or `--teammates` (registry names, pool member ids or files, one per
 seat). Prints both columns; the last line is JSON: success, collision, length and
 kinematic_success, kinematic_collision, kinematic_length (and their standard errors).
-`--replay OUT.png` draws one episode flown beside the arena's replay of it.
+`--replay OUT.png` draws the run's first episode flown beside the arena's replay of it. `--guard`
+flies with the ground station's safety filter (`hola_ray.flight.guard`).
 `--identify` fits the arena's response model to the flown drone instead
 (env.pursuer_response and env.pursuer_response_delay, for training closer to it).
 """
@@ -20,6 +21,7 @@ kinematic_success, kinematic_collision, kinematic_length (and their standard err
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import sys
 import time
@@ -28,6 +30,7 @@ from typing import Any
 
 from hola_ray.cli import OneLineParser, fail
 from hola_ray.env.config import ConfigError, PursuitConfig
+from hola_ray.flight.guard import Guard
 
 INSTALL = "pip install -e '.[deploy]'"
 
@@ -62,38 +65,49 @@ def kinematic(config: PursuitConfig) -> PursuitConfig:
 
 
 def columns(
-    team: list[Any], config: PursuitConfig, episodes: int, seed: int, batch: int = 16
+    team: list[Any],
+    config: PursuitConfig,
+    episodes: int,
+    seed: int,
+    batch: int = 16,
+    guard: Guard | None = None,
 ) -> dict[str, Any]:
     """The same episodes played three ways: {"" (flown as Crazyflies), "kinematic_" (the
     paper's arena), and "model_" (`config`'s own arena, only when it has a response
-    model)} → its `RolloutResult`; and "flight_s", the flight's wall time."""
+    model)} → its `RolloutResult`; and "flight_s", the flight's wall time. With a `guard`
+    (the ground station's safety filter) the flight and the paper's arena play through it
+    (`GuardedArena` moves at once, so there is no "model_" column)."""
     from hola_ray.evaluation.rollout import rollout
-    from hola_ray.flight import Crazyflies
+    from hola_ray.flight import Crazyflies, GuardedArena
+
+    arena = None if guard is None else functools.partial(GuardedArena, guard=guard)
+
+    def play(config: PursuitConfig, dynamics: Any = arena) -> Any:
+        return rollout(config, team, episodes, seed=seed, batch_size=batch, dynamics=dynamics)
 
     start = time.perf_counter()
-    flown = rollout(config, team, episodes, seed=seed, batch_size=batch, dynamics=Crazyflies)
+    flown = play(config, functools.partial(Crazyflies, guard=guard))
     flight_s = time.perf_counter() - start
     paper = kinematic(config)
-    out = {"": flown, "kinematic_": rollout(paper, team, episodes, seed=seed, batch_size=batch)}
-    if paper != config:  # trained with a response model: its own arena too
-        out["model_"] = rollout(config, team, episodes, seed=seed, batch_size=batch)
+    out = {"": flown, "kinematic_": play(paper)}
+    if paper != config and guard is None:  # trained with a response model: its own arena
+        out["model_"] = play(config)
     return out | {"flight_s": flight_s}
 
 
-def fly(
-    team: list[Any], config: PursuitConfig, episodes: int, seed: int, batch: int = 16
-) -> dict[str, Any]:
-    """The `columns` of `team` summarised: success, collision, length (± s.e.) and seat
-    0's crash rate of each, prefixed by its column."""
-    played = columns(team, config, episodes, seed, batch)
+def summary(played: dict[str, Any]) -> dict[str, Any]:
+    """`columns`' results summarised: success, collision, length (± s.e.), seat 0's crash
+    rate and its teammates' (the mean over their seats) of each, prefixed by its column."""
+    played = dict(played)
     flight_s = played.pop("flight_s")
-    out: dict[str, Any] = {"episodes": episodes}
+    out: dict[str, Any] = {"episodes": played[""].episodes}
     for prefix, result in played.items():
-        summary = result.summary()
+        rates = result.summary()
         for key in ("success", "collision", "length"):
-            out[f"{prefix}{key}"] = round(summary[key], 4)
-            out[f"{prefix}{key}_se"] = round(summary[f"{key}_se"], 4)
+            out[f"{prefix}{key}"] = round(rates[key], 4)
+            out[f"{prefix}{key}_se"] = round(rates[f"{key}_se"], 4)
         out[f"{prefix}crash_seat0"] = round(float(result.crashed[:, 0].mean()), 4)
+        out[f"{prefix}crash_mates"] = round(float(result.crashed[:, 1:].mean()), 4)
     out["flight_s"] = round(flight_s, 1)
     return out
 
@@ -114,7 +128,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--horizon", type=int, default=None, help="shorter episodes (tests)")
     parser.add_argument(
-        "--replay", type=Path, default=None, help="PNG: one episode flown and in the arena"
+        "--replay", type=Path, default=None, help="PNG: the first episode flown and in the arena"
+    )
+    parser.add_argument(
+        "--guard",
+        action="store_true",
+        help="the ground station's safety filter on the set-points (hola_ray/flight/guard.py)",
     )
     parser.add_argument("--json", action="store_true", help="print only the JSON line")
     args = parser.parse_args(argv)
@@ -146,16 +165,20 @@ def main(argv: list[str] | None = None) -> int:
         ]
     except (ValueError, ConfigError, OSError, ImportError) as err:
         return fail(str(err))
-    figures = fly(team, config, args.episodes, args.seed)
+    guard = Guard() if args.guard else None
+    figures = summary(columns(team, config, args.episodes, args.seed, guard=guard))
     figures |= {
+        "guard": dataclasses.asdict(guard) if guard is not None else None,
         "policy": args.policy,
         "teammates": mates,
         "scenario": f"{config.n_pursuers} vs {config.n_evaders}",
     }
     if args.replay is not None:
+        from hola_ray.evaluation.stats import episode_seeds
         from hola_ray.flight.replay import draw_flight
 
-        draw_flight(config, team, args.seed, args.replay)
+        first = int(episode_seeds(args.seed, 1)[0])  # the first episode the figures count
+        draw_flight(config, team, first, args.replay, guard=guard)
         if not args.json:
             print(f"wrote {args.replay}")
     if not args.json:
@@ -163,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{args.policy} with {', '.join(mates)}, {figures['scenario']}, "
             f"{args.episodes} episodes (seed {args.seed}):"
         )
-        for key in ("success", "collision", "length", "crash_seat0"):
+        for key in ("success", "collision", "length", "crash_seat0", "crash_mates"):
             print(
                 f"  {key:12s} flown {figures[key]:8.3f}   arena {figures['kinematic_' + key]:8.3f}"
             )

@@ -2,7 +2,17 @@
 sim-to-sim check of `python -m hola_ray.fly`."""
 
 from hola_ray.flight.crazyflie import CrazyflieModel, PIDCascade
-from hola_ray.flight.dynamics import HEIGHT, Crazyflies
+from hola_ray.flight.dynamics import HEIGHT, Crazyflies, GuardedArena
+from hola_ray.flight.guard import Guard
 from hola_ray.flight.world import PHYSICS_HZ, Quadrotors
 
-__all__ = ["HEIGHT", "PHYSICS_HZ", "CrazyflieModel", "Crazyflies", "PIDCascade", "Quadrotors"]
+__all__ = [
+    "HEIGHT",
+    "PHYSICS_HZ",
+    "CrazyflieModel",
+    "Crazyflies",
+    "Guard",
+    "GuardedArena",
+    "PIDCascade",
+    "Quadrotors",
+]

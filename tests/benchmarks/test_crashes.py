@@ -6,6 +6,7 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
@@ -62,3 +63,22 @@ def test_greedy_copies_crash_mostly_into_each_other():
     left = result["learner_mates_left_at_crash"]  # seat 0's crashes by teammates flying
     assert len(left) == 3 and sum(left) == sum(result["learner_crashes"].values())
     assert left[2] > 0  # copies that fly into each other: both teammates often still up
+
+
+def test_flown_crashes_are_the_flown_rollouts_crashes(straight):
+    pytest.importorskip("pybullet")
+    from hola_ray.flight import Crazyflies
+
+    config = PursuitConfig(n_pursuers=3, n_evaders=1, horizon=150)
+    episodes, seed = 8, 9
+    team = [straight] * 3
+    flown = crashes_module.crashes(config, team, episodes, seed, Crazyflies)
+    played = rollout(
+        config,
+        team,
+        episodes,
+        episode_seeds=episode_seeds(seed, episodes),
+        dynamics=Crazyflies,
+    )
+    assert sum(flown["crashes"].values()) == played.crashed.sum() > 0
+    assert flown["crashes"]["mate"] == 0  # flying straight up, side by side

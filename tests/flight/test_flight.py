@@ -92,5 +92,8 @@ def test_the_fly_command_flies_one_short_episode_and_ends_on_a_json_line(tmp_pat
     for key in ("success", "collision", "length"):
         assert 0 <= figures[key] <= (300 if key == "length" else 1)
         assert 0 <= figures[f"kinematic_{key}"] <= (300 if key == "length" else 1)
+    for column in ("", "kinematic_"):  # one episode: a collision is a seat that crashed
+        crashed = figures[f"{column}crash_seat0"] + figures[f"{column}crash_mates"] > 0
+        assert figures[f"{column}collision"] == float(crashed)
     assert figures["scenario"] == "3 vs 2"
     assert (tmp_path / "r.png").stat().st_size > 10_000
