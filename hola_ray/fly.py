@@ -12,8 +12,9 @@ directory, generation folder, .pt file or pool member id). It sits in seat 0; th
 seats are copies of it, or `--teammates` (registry names, pool member ids or files, one per
 seat). Prints both columns; the last line is JSON: success, collision, length and
 kinematic_success, kinematic_collision, kinematic_length (and their standard errors).
-`--replay OUT.png` draws the run's first episode flown beside the arena's replay of it. `--guard`
-flies with the ground station's safety filter (`hola_ray.flight.guard`).
+`--replay OUT.png` draws the run's first episode flown beside the arena's replay of it.
+`--guard` plays the flight and the arena through the ground station's safety filter
+(`hola_ray.flight.guard`).
 `--identify` fits the arena's response model to the flown drone instead
 (env.pursuer_response and env.pursuer_response_delay, for training closer to it).
 """

@@ -25,6 +25,9 @@ from hola_ray.env.config import PursuitConfig
 
 @dataclass(frozen=True)
 class Guard:
+    """The filter's two settings; called on a batch of drones it filters their set-points.
+    The defaults were chosen on the flight check (docs/flight.md)."""
+
     margin: float = 0.05
     """m kept beyond the arena's contact distances"""
     gain: float = 2.0
