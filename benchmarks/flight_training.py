@@ -3,6 +3,7 @@ trained in a changed one ("response": the fitted response model env.pursuer_resp
 any other env setting), seed by seed, every one judged by the paper's rules.
 
     python benchmarks/flight_training.py EPISODES BASE_RUN,BASE_RUN,... NEW_RUN,NEW_RUN,...
+        [--guard] [--teams copies validation hand]
 
 Each run's best.pt flies (and plays the paper's kinematic arena) on the same episode seeds
 in three copies, beside the validation teammates (sp-v1, sp-v2: what a choice may rest on)
@@ -10,17 +11,20 @@ and beside Greedy + VICSEK (evaluation teammates: measured, never chosen on). Th
 up in the order given (training seed i of each arm); the difference response − kinematic
 is averaged over the pairs, with a 95 % bootstrap interval that resamples the episodes
 within each pair (with few pairs it leaves out most of the seed-to-seed noise: read the
-per-pair values beside it).
+per-pair values beside it). `--guard` flies (and plays the arena) through the ground
+station's safety filter; `--teams` plays only the teams named.
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 
 import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.pools import validation_mates
+from hola_ray.flight import Guard
 from hola_ray.fly import columns
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.policies.registry import make_policy
@@ -38,8 +42,15 @@ def teams(policy, config):
 
 
 def main(argv: list[str]) -> int:
-    episodes = int(argv[0])
-    arms = {"kinematic": argv[1].split(","), "response": argv[2].split(",")}
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("episodes", type=int)
+    parser.add_argument("base")
+    parser.add_argument("new")
+    parser.add_argument("--guard", action="store_true")
+    parser.add_argument("--teams", nargs="+", choices=TEAMS, default=list(TEAMS))
+    args = parser.parse_args(argv)
+    episodes, guard = args.episodes, Guard() if args.guard else None
+    arms = {"kinematic": args.base.split(","), "response": args.new.split(",")}
     out = {}
     for arm, runs in arms.items():
         for run in runs:
@@ -48,7 +59,9 @@ def main(argv: list[str]) -> int:
             trained = policy.config
             config = PursuitConfig(n_pursuers=trained.n_pursuers, n_evaders=trained.n_evaders)
             for label, team in teams(policy, config).items():
-                played = columns(team, config, episodes, seed=0)
+                if label not in args.teams:
+                    continue
+                played = columns(team, config, episodes, seed=0, guard=guard)
                 flown, arena = played[""], played["kinematic_"]
                 out[(arm, run, label)] = {
                     "succ": flown.success,
@@ -64,7 +77,7 @@ def main(argv: list[str]) -> int:
                 )
     rng = np.random.default_rng(0)
     pairs = list(zip(arms["kinematic"], arms["response"], strict=True))
-    for label in TEAMS:
+    for label in args.teams:
         for key in ("succ", "coll", "own"):
             diffs = [
                 out[("response", b, label)][key].astype(float)
