@@ -112,7 +112,8 @@ def plot_progress(run_dir: Path) -> Path:
     the learner with the validation teammates (with its own crash rate), the accepted
     learners and the best generation (on the validation curve, its rule) marked; φ entropy
     (self-play: episode length). Per PPO iteration
-    (iterations.csv): the trained policy's median std and its clipped fraction."""
+    (iterations.csv): the trained policy's median std and its clipped fraction. Against the
+    run's cumulative wall time: success and collision; per generation, the Oracle's speed."""
     from matplotlib.figure import Figure
 
     run = RunDir(run_dir)
@@ -127,8 +128,8 @@ def plot_progress(run_dir: Path) -> Path:
             [float(r[f"{prefix}_{name}_se"]) for r in have],
         )
 
-    fig = Figure(figsize=(13, 7.6))  # no pyplot, no global backend switched
-    axes = fig.subplots(2, 3)
+    fig = Figure(figsize=(17, 7.6))  # no pyplot, no global backend switched
+    axes = fig.subplots(2, 4)
     for ax, name, label in (
         (axes[0, 0], "success", "success rate"),
         (axes[0, 1], "collision", "collision rate"),
@@ -206,11 +207,40 @@ def plot_progress(run_dir: Path) -> Path:
         every = [int(r["generation"]) for r in rows]
         axes[1, 2].plot(every, [float(r["phi_entropy"]) for r in rows], marker="o")
         axes[1, 2].set(xlabel="generation", ylabel="φ entropy (nats)")
+    _wall_time_panels(rows, axes[0, 3], axes[1, 3])
     fig.suptitle(run_dir.name, fontsize=9)
     fig.tight_layout()
     out = run_dir / "progress.png"
     fig.savefig(out, dpi=120)
     return out
+
+
+def _wall_time_panels(rows: list[dict[str, str]], figures, speed) -> None:
+    """Success and collision against the run's cumulative wall time (`cumulative_wall_s`),
+    and each generation's Oracle speed (env steps per second of training)."""
+    timed = [r for r in rows if r.get("cumulative_wall_s")]
+    for prefix, style in (("learner", "o"), ("val", "^"), ("population", "s")):
+        for name, color in (("success", "tab:blue"), ("collision", "tab:red")):
+            have = [r for r in timed if r.get(f"{prefix}_{name}")]
+            if have:
+                figures.plot(
+                    [float(r["cumulative_wall_s"]) / 60 for r in have],
+                    [float(r[f"{prefix}_{name}"]) for r in have],
+                    marker=style,
+                    color=color,
+                    ls="-" if prefix != "val" else ":",
+                    label=f"{prefix} {name}",
+                )
+    figures.set(xlabel="wall time, cumulative (min)", ylabel="rate", ylim=(0, 1))
+    if timed:
+        figures.legend(fontsize=6)
+    paced = [r for r in rows if r.get("oracle_env_steps_per_s")]
+    speed.plot(
+        [int(r["generation"]) for r in paced],
+        [float(r["oracle_env_steps_per_s"]) for r in paced],
+        marker="o",
+    )
+    speed.set(xlabel="generation", ylabel="Oracle env steps / s of training")
 
 
 def main(argv: list[str] | None = None) -> int:

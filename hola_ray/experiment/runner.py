@@ -376,15 +376,7 @@ class Runner:
             "learner_samples": int(number(last, "learner_samples")),
             "gradient_steps": int(number(last, "gradient_steps")),
             "pretrain_env_steps": int(number(rows[0], "pretrain_env_steps")),
-            "train_s": round(
-                sum(
-                    # a generation's wall time; older runs and generation 0: its phases
-                    number(r, "wall_s")
-                    or sum(number(r, k) for k in ("pretrain_s", "oracle_s", "grapher_s", "eval_s"))
-                    for r in rows
-                ),
-                1,
-            ),
+            "train_s": round(float(last["cumulative_wall_s"]), 1),
         }
 
     def run(self) -> dict[str, Any]:

@@ -158,7 +158,7 @@ class Trainer:
     def _pretrain(self) -> dict[str, Any]:
         c = self.config
         self.coord.set_phase.remote("pretrain")
-        start = time.perf_counter()
+        begun = start = time.perf_counter()
         built = c.strategy.build_population(self)
         states_list, stats = built.states, built.stats
         exports = [c.export(s) for s in states_list]
@@ -171,6 +171,7 @@ class Trainer:
         start = time.perf_counter()
         ray.get(self.coord.record.remote(results))
         metrics = {
+            "wall_s": 0.0,  # the whole of generation 0, set below
             "env_steps": 0,
             **self._population_as_team(0),
             "pretrain_env_steps": stats.env_steps,
@@ -181,6 +182,7 @@ class Trainer:
             **grapher,
             "coordinator_s": round(time.perf_counter() - start, 4),
         }
+        metrics["wall_s"] = round(time.perf_counter() - begun, 2)
         row = ray.get(self.coord.commit.remote(0, metrics, None, None, stats.iteration_log))
         key = c.generation_zero_key()
         if key is not None:  # what another run of the same pre-training may adopt

@@ -17,6 +17,8 @@ SAMPLERS = ("batched", "pettingzoo")
 """oracle.sampler: how the Oracle's env runners sample (OracleConfig.sampler)."""
 BUDGETS = ("env_steps", "learner_samples")
 """oracle.budget: what the Oracle's budget counts."""
+UPDATES = ("lean", "rllib")
+"""oracle.update: how the learner runs a PPO update (OracleConfig.update)."""
 
 
 @dataclass(frozen=True)
@@ -39,7 +41,13 @@ class OracleConfig:
     epochs: int = 20
     """PPO epochs over each train batch"""
     lr: float = 3e-4
-    """Adam learning rate"""
+    """Adam learning rate (at the start, when it decays)"""
+    lr_decay_env_steps: int = 0
+    """> 0: the learning rate falls linearly from `lr` to `lr_final` over this many env
+    steps the Oracle samples (counted from its start: a resumed run starts the schedule
+    anew), then stays there (RLlib's piecewise-linear lr schedule); 0 = constant"""
+    lr_final: float = 0.0
+    """the learning rate the decay ends at (with `lr_decay_env_steps`)"""
     gamma: float = 0.99
     """reward discount"""
     gae_lambda: float = 0.95
@@ -77,6 +85,11 @@ class OracleConfig:
     """true reproduces RLlib's own marking, for ablations only: an episode cut at the
     horizon counts as terminated and nothing bootstraps V(s_T) (the default: truncated,
     hola_ray/env/horizon.py)"""
+    update: str = "lean"
+    """how the learner runs a PPO update: lean (hola_ray/oracle/mep.py, OracleLearner: the
+    frozen partners' rows dropped before GAE, minibatches cut by index, the loss's unused
+    terms and per-minibatch logging left out; the same loss and gradients) or rllib (RLlib's
+    own pipeline, iterator and loss: the reference the lean path is tested against)"""
     sampler: str = "batched"
     """how env runners sample: batched (hola_ray/oracle/batched_runner.py: every vector env
     in one compiled step, one forward pass per module, episodes built in bulk) or
@@ -96,6 +109,8 @@ class OracleConfig:
             self.minibatch,
         )
         finite_in(s, self, "lr", 1e-8, 1.0, "in [1e-8, 1]")
+        positive_int(s, self, "lr_decay_env_steps", minimum=0, maximum=10**11)
+        finite_in(s, self, "lr_final", 0.0, 1.0, "in [0, 1]")
         finite_in(s, self, "gamma", 0.0, 1.0, "in [0, 1]")
         finite_in(s, self, "gae_lambda", 0.0, 1.0, "in [0, 1]")
         finite_in(s, self, "vf_coef", 0.0, 1e3, "in [0, 1000]")
@@ -116,6 +131,9 @@ class OracleConfig:
             self.horizon_terminates,
         )
         require(
+            self.update in UPDATES, "oracle.update", f"one of {', '.join(UPDATES)}", self.update
+        )
+        require(
             self.sampler in SAMPLERS,
             "oracle.sampler",
             f"one of {', '.join(SAMPLERS)}",
@@ -128,6 +146,13 @@ class OracleConfig:
             self.action_dist,
         )
         widths("oracle.hidden", self.hidden)
+
+    @property
+    def lr_schedule(self) -> float | list[list[float]]:
+        """RLlib's `lr`: the constant, or [[0, lr], [decay steps, lr_final]]."""
+        if not self.lr_decay_env_steps:
+            return self.lr
+        return [[0, self.lr], [self.lr_decay_env_steps, self.lr_final]]
 
     def model_features(self, env: PursuitConfig) -> dict[str, Any] | None:
         """The learned policies' proximity features ({"indices", "gain"}), or None."""

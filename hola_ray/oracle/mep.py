@@ -16,10 +16,20 @@ from collections.abc import Sequence
 from typing import Any
 
 import torch
+from ray.rllib.algorithms.ppo.ppo import (
+    LEARNER_RESULTS_KL_KEY,
+    LEARNER_RESULTS_VF_EXPLAINED_VAR_KEY,
+    LEARNER_RESULTS_VF_LOSS_UNCLIPPED_KEY,
+)
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.connectors.connector_v2 import ConnectorV2
 from ray.rllib.connectors.learner.general_advantage_estimation import GeneralAdvantageEstimation
 from ray.rllib.core.columns import Columns
+from ray.rllib.core.learner.learner import ENTROPY_KEY, POLICY_LOSS_KEY, VF_LOSS_KEY
+from ray.rllib.evaluation.postprocessing import Postprocessing
+from ray.rllib.utils.torch_utils import explained_variance
+
+from hola_ray.oracle.minibatches import Minibatch, Minibatches
 
 
 class PopulationEntropyBonus(ConnectorV2):
@@ -54,6 +64,43 @@ class PopulationEntropyBonus(ConnectorV2):
         return batch
 
 
+class DropFrozenModules(ConnectorV2):
+    """Removes the frozen partners' rows from the train batch before GAE.
+
+    RLlib's GAE connector computes critic values for every module in the batch (its own
+    TODO says the filter to trained modules belongs in the pipeline), and the learner
+    drops the frozen modules' rows only afterwards, before its minibatches. With ten
+    frozen partners that is two thirds of the rows run through a critic for nothing."""
+
+    def __init__(
+        self,
+        input_observation_space=None,
+        input_action_space=None,
+        *,
+        trained: Sequence[str],
+        **kwargs: Any,
+    ):
+        super().__init__(input_observation_space, input_action_space, **kwargs)
+        self.trained = frozenset(trained)
+
+    def __call__(self, *, rl_module, batch, episodes, **kwargs):
+        for mid in [m for m in batch if m not in self.trained]:
+            del batch[mid]
+        return batch
+
+
+class _Totals:
+    """An update's trained rows per module (as sized ranges) and env steps, read by RLlib's
+    step-count logging as it reads a minibatch."""
+
+    def __init__(self, policy_batches: dict[str, range], env_steps: int):
+        self.policy_batches = policy_batches
+        self._env_steps = env_steps
+
+    def env_steps(self) -> int:
+        return self._env_steps
+
+
 def mean_policy_logp(rl_module, members: Sequence[str], obs, actions) -> torch.Tensor:
     """log π̄(a|s) = log mean_k π_k(a|s) over the members' action distributions, [T]."""
     logps = []
@@ -68,8 +115,9 @@ def mean_policy_logp(rl_module, members: Sequence[str], obs, actions) -> torch.T
 class OracleLearner(PPOTorchLearner):
     """PPO learner of the Oracle and of MEP pre-training.
 
-    - With `mep_alpha` > 0 in `learner_config_dict`, its pipeline adds the population-
-      entropy bonus to the rewards of the `mep_modules` before GAE.
+    - Its pipeline drops the frozen partners' rows before GAE (`DropFrozenModules`), and with
+      `mep_alpha` > 0 in `learner_config_dict` adds the population-entropy bonus to the
+      rewards of the `mep_modules` before GAE.
     - A train batch can hold no step of a trained module: when the learner collided early
       in every vector env's episode, the sampled window holds only its frozen partners
       playing on. RLlib's update then fails (no minibatch at all); this learner skips
@@ -81,6 +129,11 @@ class OracleLearner(PPOTorchLearner):
       setting) and clips tensor by tensor: 2.4× the time of the torch work itself. A
       minibatch whose gradient is not finite is skipped (counted as
       `num_nonfinite_gradient_steps`), where RLlib would zero the bad tensors and step.
+    - Minibatches are cut by index (`hola_ray.oracle.minibatches`), RLlib's step counters
+      logged once per update, and the PPO loss builds only the terms its gradient needs
+      (`compute_loss_for_module`). RLlib's off-policyness figure (gradient updates since
+      the sampler's weights) is not logged: in PPO it only counts the minibatches.
+      `oracle.update: rllib` keeps RLlib's own pipeline, iterator, loss and logging.
     """
 
     update_s: float = 0.0
@@ -116,6 +169,74 @@ class OracleLearner(PPOTorchLearner):
             if self.should_module_be_updated(episode.module_for(aid))
         )
 
+    def compute_loss_for_module(self, *, module_id, config, batch, fwd_out):
+        """RLlib's PPO loss (`PPOTorchLearner.compute_loss_for_module`, the same terms and
+        masking), less the work nothing reads: the entropy enters the graph only when its
+        coefficient is not 0, the sampler's action distribution is built only for the KL
+        penalty, and the logged statistics are computed once per update, from the last
+        minibatch (what RLlib's window-1 logging keeps), in `after_gradient_based_update`."""
+        if not self._lean:
+            return super().compute_loss_for_module(
+                module_id=module_id, config=config, batch=batch, fwd_out=fwd_out
+            )
+        module = self.module[module_id].unwrapped()
+        mask = batch.get(Columns.LOSS_MASK)
+        if mask is not None:
+            num_valid = torch.sum(mask)
+
+            def mean(x: torch.Tensor) -> torch.Tensor:
+                return torch.sum(x[mask]) / num_valid
+
+        else:
+            mean = torch.mean
+        dist = module.get_train_action_dist_cls().from_logits(fwd_out[Columns.ACTION_DIST_INPUTS])
+        ratio = torch.exp(dist.logp(batch[Columns.ACTIONS]) - batch[Columns.ACTION_LOGP])
+        advantages = batch[Postprocessing.ADVANTAGES]
+        surrogate = torch.min(
+            advantages * ratio,
+            advantages * torch.clamp(ratio, 1 - config.clip_param, 1 + config.clip_param),
+        )
+        values = module.compute_values(batch, embeddings=fwd_out.get(Columns.EMBEDDINGS))
+        vf_loss = torch.pow(values - batch[Postprocessing.VALUE_TARGETS], 2.0)
+        vf_clipped = torch.clamp(vf_loss, 0, config.vf_clip_param)
+        per_row = -surrogate + config.vf_loss_coeff * vf_clipped
+        coeff = self.entropy_coeff_schedulers_per_module[module_id].get_current_value()
+        if coeff:
+            per_row = per_row - coeff * dist.entropy()
+        total = mean(per_row)
+        kl = None
+        if config.use_kl_loss:
+            prev = module.get_exploration_action_dist_cls().from_logits(
+                batch[Columns.ACTION_DIST_INPUTS]
+            )
+            kl = mean(prev.kl(dist))
+            total = total + self.curr_kl_coeffs_per_module[module_id] * kl
+
+        def stats() -> dict[str, torch.Tensor]:
+            with torch.no_grad():
+                return {
+                    POLICY_LOSS_KEY: -mean(surrogate),
+                    VF_LOSS_KEY: mean(vf_clipped),
+                    LEARNER_RESULTS_VF_LOSS_UNCLIPPED_KEY: mean(vf_loss),
+                    LEARNER_RESULTS_VF_EXPLAINED_VAR_KEY: explained_variance(
+                        batch[Postprocessing.VALUE_TARGETS], values
+                    ),
+                    ENTROPY_KEY: mean(dist.entropy()),
+                    LEARNER_RESULTS_KL_KEY: (
+                        kl.detach() if kl is not None else torch.zeros((), device=total.device)
+                    ),
+                }
+
+        self._last_stats[module_id] = stats
+        return total
+
+    def after_gradient_based_update(self, *, timesteps) -> None:
+        self._log_trained_totals()
+        for module_id, stats in self._last_stats.items():
+            self.metrics.log_dict(stats(), key=module_id, window=1)
+        self._last_stats = {}
+        super().after_gradient_based_update(timesteps=timesteps)
+
     def configure_optimizers_for_module(self, module_id, config=None) -> None:
         if not self.should_module_be_updated(module_id):
             return  # frozen partners: weights are set, never stepped
@@ -127,8 +248,77 @@ class OracleLearner(PPOTorchLearner):
             lr_or_lr_schedule=config.lr,
         )
 
+    def _create_iterator_if_necessary(
+        self,
+        *,
+        training_data,
+        num_total_minibatches: int = 0,
+        num_epochs: int = 1,
+        minibatch_size: int | None = None,
+        shuffle_batch_per_epoch: bool = False,
+        **kwargs,
+    ):
+        """The update's minibatches (`hola_ray.oracle.minibatches`) from the train batch the
+        learner pipeline built, the modules not trained left out as RLlib does."""
+        if training_data.data_iterators or not self._lean:
+            return super()._create_iterator_if_necessary(
+                training_data=training_data,
+                num_total_minibatches=num_total_minibatches,
+                num_epochs=num_epochs,
+                minibatch_size=minibatch_size,
+                shuffle_batch_per_epoch=shuffle_batch_per_epoch,
+                **kwargs,
+            )
+        batch = self._make_batch_if_necessary(training_data=training_data)
+        columns = {
+            mid: {k: v for k, v in module_batch.items() if isinstance(v, torch.Tensor)}
+            for mid, module_batch in batch.policy_batches.items()
+            if self.should_module_be_updated(mid, batch)
+        }
+        if not columns:
+            return {}
+        if any(self.module[mid].is_stateful() for mid in columns):
+            raise ValueError("the Oracle's modules are not recurrent; its minibatches cut rows")
+        self._trained_rows = dict.fromkeys(columns, 0)
+        self._env_steps_trained = 0
+        self._minibatches = 0
+        return Minibatches(
+            columns,
+            env_steps=batch.env_steps(),
+            num_epochs=num_epochs,
+            minibatch_size=minibatch_size,
+            shuffle=shuffle_batch_per_epoch or num_epochs > 1,
+            num_total_minibatches=num_total_minibatches,
+        )
+
+    def _log_metrics(self, batch) -> None:
+        if not isinstance(batch, Minibatch):
+            super()._log_metrics(batch)
+
+    def _log_steps_trained_metrics(self, batch) -> None:
+        """Counted per minibatch, logged once per update (`_log_trained_totals`)."""
+        if not isinstance(batch, Minibatch):
+            return super()._log_steps_trained_metrics(batch)
+        for mid, rows in batch.rows.items():
+            self._trained_rows[mid] += rows
+        self._env_steps_trained += batch.env_steps()
+        self._minibatches += 1
+
+    def _log_trained_totals(self) -> None:
+        """RLlib's trained-step counters (the lifetime ones drive its schedules) and its
+        Prometheus counters, for the whole update at once: the same sums as per minibatch."""
+        if not self._minibatches:
+            return
+        totals = _Totals(
+            {mid: range(n) for mid, n in self._trained_rows.items()}, self._env_steps_trained
+        )
+        super()._log_steps_trained_metrics(totals)
+        super()._log_metrics(totals)
+        self._minibatches = 0
+
     def _uncompiled_update(self, batch, **kwargs):
-        self._compute_off_policyness(batch)
+        if not self._lean:
+            self._compute_off_policyness(batch)
         fwd_out = self.module.forward_train(batch)
         loss_per_module = self.compute_losses(fwd_out=fwd_out, batch=batch)
         trained = [m for m in loss_per_module if self._module_optimizers.get(m)]
@@ -197,8 +387,22 @@ class OracleLearner(PPOTorchLearner):
     def build(self) -> None:
         super().build()
         extra = self.config.learner_config_dict
+        self._lean = extra.get("update", "lean") == "lean"
+        """oracle.update: lean, or RLlib's own pipeline, iterator and loss"""
+        self._last_stats: dict[str, Any] = {}
+        """module id → the statistics of its last minibatch's loss, logged after the update"""
+        self._trained_rows: dict[str, int] = {}
+        self._env_steps_trained = self._minibatches = 0
+        """this update's trained rows per module, env steps and minibatches, so far"""
+        if self._learner_connector is None:
+            return
+        if self._lean:
+            trained = [m for m in self.module.keys() if self.should_module_be_updated(m)]
+            self._learner_connector.insert_before(
+                GeneralAdvantageEstimation, DropFrozenModules(trained=trained)
+            )
         alpha = float(extra.get("mep_alpha", 0.0))
-        if alpha > 0.0 and self._learner_connector is not None:
+        if alpha > 0.0:
             self._learner_connector.insert_before(
                 GeneralAdvantageEstimation,
                 PopulationEntropyBonus(alpha=alpha, module_ids=extra["mep_modules"]),

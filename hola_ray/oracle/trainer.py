@@ -200,7 +200,8 @@ class Oracle:
             )
             for m in self.modules
         }
-        extra = {"horizon_terminates": o.horizon_terminates}  # read by the env runners
+        # read by the env runners (horizon) and the learner (update)
+        extra = {"horizon_terminates": o.horizon_terminates, "update": o.update}
         if self.mep:
             extra |= {"mep_alpha": self.seating.mep_alpha, "mep_modules": self.members}
         return (
@@ -228,7 +229,7 @@ class Oracle:
                 ),
                 minibatch_size=o.minibatch,
                 num_epochs=o.epochs,
-                lr=o.lr,
+                lr=o.lr_schedule,
                 gamma=o.gamma,
                 lambda_=o.gae_lambda,
                 vf_loss_coeff=o.vf_coef,

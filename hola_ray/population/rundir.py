@@ -268,7 +268,15 @@ class RunDir:
 
     # ---- metrics ------------------------------------------------------------------------
     def metrics_rows(self) -> list[dict[str, Any]]:
-        return [self.read_json(g, "metrics.json") for g in self.completed()]
+        """Every completed generation's metrics, with `cumulative_wall_s`: the run's wall
+        time up to the end of that generation (`generation_wall_s` summed; the time a stopped
+        run waited before `--resume` is not in it)."""
+        rows, total = [], 0.0
+        for g in self.completed():
+            row = self.read_json(g, "metrics.json")
+            total += generation_wall_s(row)
+            rows.append({**row, "cumulative_wall_s": round(total, 2)})
+        return rows
 
     def iteration_rows(self) -> list[dict[str, Any]]:
         """Every completed generation's PPO iterations, each row tagged with its generation."""
@@ -284,6 +292,16 @@ class RunDir:
         lost or doubled row, whatever was killed when)."""
         _write_csv(self.metrics_csv, self.metrics_rows())
         _write_csv(self.iterations_csv, self.iteration_rows())
+
+
+def generation_wall_s(row: dict[str, Any]) -> float:
+    """A generation's wall time from its metrics: `wall_s`, or for rows written before
+    every generation had one, its phases' times. A generation 0 adopted from another run
+    counts the time it took there: the population is part of the method's cost."""
+    if row.get("wall_s") not in (None, ""):
+        return float(row["wall_s"])
+    phases = ("pretrain_s", "oracle_s", "grapher_s", "eval_s", "coordinator_s")
+    return sum(float(row.get(k) or 0.0) for k in phases)
 
 
 def _write_csv(path: Path, rows: list[dict[str, Any]]) -> None:

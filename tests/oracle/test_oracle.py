@@ -349,6 +349,85 @@ def test_the_lean_gradient_step_equals_rllibs_and_frozen_partners_have_no_optimi
         np.testing.assert_allclose(lean[k].numpy(), rllib[k].numpy(), rtol=0, atol=1e-7, err_msg=k)
 
 
+def test_the_train_batch_holds_the_learners_rows_only_with_gae_on_them(local_learner, oracle):
+    """The frozen partners' rows leave the learner pipeline before GAE (no critic pass on
+    them); the learner's rows get advantages and value targets as before."""
+    from ray.rllib.core.learner.training_data import TrainingData
+
+    from hola_ray.oracle.mep import DropFrozenModules
+
+    learner = local_learner(oracle.algo)
+    pieces = [type(p).__name__ for p in learner._learner_connector.connectors]
+    assert pieces.index(DropFrozenModules.__name__) < pieces.index("GeneralAdvantageEstimation")
+    oracle.set_phi({m: 1.0 / len(oracle.members) for m in oracle.members})
+    (episodes,) = oracle.algo.env_runner_group.foreach_env_runner(
+        lambda runner: runner.sample(num_timesteps=400, force_reset=True),
+        local_env_runner=False,
+    )
+    modules = {ep.module_for(aid) for ep in episodes for aid in ep.agent_ids}
+    assert LEARNER in modules and modules & set(oracle.members)  # partners played too
+    batch = learner._make_batch_if_necessary(TrainingData(episodes=episodes))
+    assert set(batch.policy_batches) == {LEARNER}
+    rows = batch.policy_batches[LEARNER]
+    assert len(rows["advantages"]) == len(rows["value_targets"]) == len(rows["obs"]) > 0
+
+
+@pytest.mark.parametrize("entropy_coef", [0.0, 0.05])
+@pytest.mark.parametrize("masked", [False, True])
+def test_the_lean_ppo_loss_equals_rllibs_with_its_gradients_and_logged_figures(
+    local_learner, oracle, entropy_coef, masked
+):
+    """OracleLearner's PPO loss gives RLlib's loss and gradients, and logs the same figures
+    (those of the update's last minibatch), with or without the entropy term and a loss
+    mask."""
+    from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
+    from ray.rllib.utils.schedules.scheduler import Scheduler
+
+    learner = local_learner(oracle.algo)
+    module = learner.module[LEARNER]
+    config = learner.config.get_config_for_module(LEARNER)
+    schedulers = learner.entropy_coeff_schedulers_per_module
+    kept = schedulers[LEARNER]
+    schedulers[LEARNER] = Scheduler(fixed_value_or_schedule=entropy_coef, framework="torch")
+    rng = np.random.default_rng(5)
+    n = 96
+    batch = {
+        "obs": torch.as_tensor(rng.uniform(-1, 1, (n, CONFIG.env.obs_dim)), dtype=torch.float32),
+        "actions": torch.as_tensor(rng.uniform(-0.9, 0.9, (n, 1)), dtype=torch.float32),
+        "action_logp": torch.as_tensor(rng.normal(0, 0.3, n), dtype=torch.float32),
+        "action_dist_inputs": torch.as_tensor(rng.normal(0, 1, (n, 2)), dtype=torch.float32),
+        "advantages": torch.as_tensor(rng.normal(0, 2, n), dtype=torch.float32),
+        "value_targets": torch.as_tensor(rng.normal(0, 5, n), dtype=torch.float32),
+    }
+    if masked:
+        batch["loss_mask"] = torch.as_tensor(rng.uniform(size=n) < 0.7)
+
+    def loss_of(compute) -> tuple[float, dict[str, torch.Tensor], dict[str, float]]:
+        module.zero_grad(set_to_none=True)
+        learner._last_stats = {}
+        fwd_out = module.forward_train(batch)
+        loss = compute(learner, module_id=LEARNER, config=config, batch=batch, fwd_out=fwd_out)
+        loss.backward()
+        for mid, stats in learner._last_stats.items():  # the lean loss logs after the update
+            learner.metrics.log_dict(stats(), key=mid, window=1)
+        learner._last_stats = {}
+        keys = ["policy_loss", "vf_loss", "vf_loss_unclipped", "vf_explained_var", "entropy"]
+        logged = {k: float(learner.metrics.peek((LEARNER, k))) for k in keys}
+        grads = {k: p.grad.clone() for k, p in module.named_parameters() if p.grad is not None}
+        return float(loss.detach()), grads, logged
+
+    try:
+        lean = loss_of(type(learner).compute_loss_for_module)
+        rllib = loss_of(PPOTorchLearner.compute_loss_for_module)
+    finally:
+        schedulers[LEARNER] = kept
+    assert lean[0] == pytest.approx(rllib[0], rel=1e-6)
+    assert lean[1].keys() == rllib[1].keys() and lean[1]
+    for k in lean[1]:
+        np.testing.assert_allclose(lean[1][k], rllib[1][k], rtol=1e-5, atol=1e-8, err_msg=k)
+    assert lean[2] == pytest.approx(rllib[2], rel=1e-6)
+
+
 def test_a_reset_learner_trains_on_with_its_new_hyperparameters_and_a_fresh_optimizer(
     local_learner, oracle
 ):

@@ -144,6 +144,22 @@ def test_generation_folders_are_all_or_nothing(tmp_path):
     assert rows[0]["b"] == "" and rows[1]["b"] == "3"
 
 
+def test_metrics_csv_has_the_runs_cumulative_wall_time(tmp_path):
+    """cumulative_wall_s sums the generations' wall_s; a generation 0 written before it had
+    one counts its phases (pre-training, Grapher, coordinator)."""
+    run = RunDir(tmp_path / "run")
+    run.create("method: hola\n")
+    old_g0 = {"generation": 0, "pretrain_s": 100.0, "grapher_s": 5.5, "coordinator_s": 0.5}
+    run.write_generation(0, {"metrics.json": old_g0}, None)
+    run.write_generation(1, {"metrics.json": {"generation": 1, "wall_s": 20.25}}, None)
+    run.write_generation(2, {"metrics.json": {"generation": 2, "wall_s": 9.75}}, None)
+    run.rewrite_metrics_csv()
+    rows = list(csv.DictReader(run.metrics_csv.open()))
+    # 100 + 5.5 + 0.5 = 106; + 20.25 = 126.25; + 9.75 = 136
+    assert [float(r["cumulative_wall_s"]) for r in rows] == [106.0, 126.25, 136.0]
+    assert "cumulative_wall_s" not in run.read_json(1, "metrics.json")  # derived, not stored
+
+
 def test_runs_in_folders_of_one_name_get_different_actor_names(tmp_path):
     from hola_ray.population.coordinator import coordinator_name, run_id
 
