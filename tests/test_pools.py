@@ -102,9 +102,18 @@ def test_the_committed_pools_load_and_play_their_recorded_table_ii(name):
         recorded = entry["table_ii"]
         episodes = recorded["episodes"] // len(recorded["seeds"])
         again = measure(members[mid], config, episodes, recorded["seeds"])
-        for key, value in recorded.items():  # play is deterministic: to the manifest's digits
-            if key not in ("episodes", "seeds"):
+        for key, value in recorded.items():
+            if key in ("episodes", "seeds"):
+                continue
+            if entry["kind"] == "handwritten":  # numpy arithmetic: to the manifest's digits
                 assert round(again[key], 4) == value, (mid, key)
+            elif not key.endswith("_se"):
+                # A network's float32 sums round differently on another CPU (this one has
+                # AVX-512 and AMX; ppo-1 and ppo-2 then play other episodes than the build
+                # machine's): the figure within 3 of its recorded standard errors. Another
+                # member in its place is far outside (ppo-1 and ppo-2 differ by 0.33).
+                bound = max(3 * recorded[f"{key}_se"], 1e-4)
+                assert abs(again[key] - value) <= bound, (mid, key, again[key], value)
 
 
 def test_d3qn_g_trained_against_one_evader_plays_two_as_it_is():
