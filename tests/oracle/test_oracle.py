@@ -412,7 +412,9 @@ def test_the_lean_ppo_loss_equals_rllibs_with_its_gradients_and_logged_figures(
             learner.metrics.log_dict(stats(), key=mid, window=1)
         learner._last_stats = {}
         keys = ["policy_loss", "vf_loss", "vf_loss_unclipped", "vf_explained_var", "entropy"]
-        logged = {k: float(learner.metrics.peek((LEARNER, k))) for k in keys}
+        logged = {
+            k: float(torch.as_tensor(learner.metrics.peek((LEARNER, k))).detach()) for k in keys
+        }
         grads = {k: p.grad.clone() for k, p in module.named_parameters() if p.grad is not None}
         return float(loss.detach()), grads, logged
 
