@@ -14,12 +14,14 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hola_ray import interrupt
 from hola_ray.cli import apply_sets
 from hola_ray.env.config import ConfigError, load_yaml, located
-from hola_ray.methods.config import RunConfig
+
+if TYPE_CHECKING:
+    from hola_ray.methods.config import RunConfig
 
 DEFAULT: dict[str, Any] = {
     "method": "hola",
@@ -81,6 +83,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def resolve(args: argparse.Namespace) -> tuple[RunConfig, Path]:
     """The validated config and run directory; raises before any work starts."""
+    from hola_ray.methods.config import RunConfig
     from hola_ray.methods.trainer import check_run_dir
 
     if args.resume is not None:
@@ -105,6 +108,8 @@ def resolve(args: argparse.Namespace) -> tuple[RunConfig, Path]:
 def read_config(path: Path | None, sets: list[str] | None) -> RunConfig:
     """The run config of `--config` (the embedded default without one) with `--set`'s
     overrides; an error names the file and line, or the `--set` it came from."""
+    from hola_ray.methods.config import RunConfig
+
     if not sets:
         return RunConfig.from_dict(DEFAULT) if path is None else RunConfig.from_yaml(path)
     data = DEFAULT if path is None else load_yaml(path)
@@ -126,6 +131,8 @@ def read_config(path: Path | None, sets: list[str] | None) -> RunConfig:
 
 def with_generations(config: RunConfig, generations: int) -> RunConfig:
     """The config with `--generations N` (validated as the config's own field)."""
+    from hola_ray.methods.config import RunConfig
+
     return RunConfig.from_dict({**config.to_dict(), "generations": generations})
 
 

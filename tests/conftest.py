@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -11,6 +12,11 @@ import pytest
 from hypothesis import settings
 
 from hola_ray.env import PursuitConfig
+
+# The commands re-run themselves under PYTHONHASHSEED=0 when it is not set
+# (`hola_ray.progress.fixed_hash_seed`): the tests' subprocesses start with it set, as
+# the re-run would, and skip a second interpreter's imports (seconds each).
+os.environ.setdefault("PYTHONHASHSEED", "0")
 
 
 @pytest.fixture(scope="session")

@@ -24,3 +24,33 @@ def test_a_disabled_progress_says_nothing(capsys):
     with progress(10, "quiet", "ep", enabled=False) as bar:
         bar.update(10)
     assert capsys.readouterr().err == ""
+
+
+def test_a_command_reruns_itself_under_the_fixed_hash_seed(tmp_path):
+    """Without PYTHONHASHSEED the command re-runs as `python -m <module>` with it set to 0,
+    so two runs hash strings alike; `hola_ray.run` does it before its heavy imports."""
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "probe.py").write_text(
+        "import os, sys\nprint(os.environ['PYTHONHASHSEED'], hash('hola'), sys.argv[1:])\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONHASHSEED"}
+    env["PYTHONPATH"] = os.pathsep.join([str(tmp_path), env.get("PYTHONPATH", "")])
+    code = (
+        "import sys; from hola_ray.progress import fixed_hash_seed; "
+        "fixed_hash_seed('probe', sys.argv[1:])"
+    )
+
+    def said() -> str:
+        cmd = [sys.executable, "-c", code, "--x", "1"]
+        return subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
+
+    first = said()
+    assert first.startswith("0 ") and first.strip().endswith("['--x', '1']")
+    assert said() == first
+    # the main job's module imports no torch, Ray or RLlib before it re-runs itself
+    probe = "import sys, hola_ray.run; print(sorted({'torch', 'ray'} & set(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True)
+    assert out.stdout.strip() == "[]", out.stderr[-2000:]
