@@ -1,7 +1,9 @@
-"""Every method's Oracle, per learner transition: the lean PPO update against RLlib's own.
+"""Every method's Oracle, per learner transition: the lean PPO update against RLlib's own
+(or any two values of one Oracle setting, `--against`).
 
     python benchmarks/oracle_speed.py [--config configs/default.yaml] [--set oracle.x=y]
                                       [--samples 60000] [--repeats 2]
+    python benchmarks/oracle_speed.py --against oracle.overlap=false,true
 
 The seven methods seat the Oracle in three ways (`Method.seating`): self-play (sp: the
 learner in every seat), a learner beside frozen partners drawn by φ (hola, hola_r,
@@ -10,9 +12,10 @@ uniform, fcp, mep, pbt: `population.max_size` partner modules), and MEP pre-trai
 trained with `oracle.update: rllib` (RLlib's learner pipeline, minibatch iterator and PPO
 loss) and `oracle.update: lean` (`hola_ray.oracle.mep.OracleLearner`), interleaved,
 `--repeats` times each, `--samples` learner transitions (MEP pre-training: env steps, its
-budget's unit) after a warm-up iteration. It
-prints one JSON line per measurement and, last, one with the median learner transitions
-per second of each and their ratio.
+budget's unit) after a warm-up iteration. `--against KEY=A,B` compares KEY's values A and
+B instead (default `oracle.update=rllib,lean`). It prints one JSON line per measurement
+and, last, one with the median learner transitions per second of each and their ratio
+(B ÷ A).
 """
 
 from __future__ import annotations
@@ -56,11 +59,11 @@ def oracle_for(config, seating: str):
     return oracle
 
 
-def measure(config, seating: str, update: str, samples: int) -> dict:
+def measure(config, seating: str, key: str, value: str, samples: int) -> dict:
+    from hola_ray.cli import apply_sets
     from hola_ray.methods.config import RunConfig
 
-    data = config.to_dict()
-    data["oracle"] = {**data["oracle"], "update": update, "budget": "learner_samples"}
+    data = apply_sets(config.to_dict(), [f"{key}={value}", "oracle.budget=learner_samples"])
     c = RunConfig.from_dict(data)
     oracle = oracle_for(c, seating)
     try:
@@ -72,7 +75,7 @@ def measure(config, seating: str, update: str, samples: int) -> dict:
     per_s = stats.learner_samples / max(stats.wall_s, 1e-9)
     return {
         "seating": seating,
-        "update": update,
+        key: value,
         "learner_samples_per_s": round(per_s, 1),
         "learn_s": round(stats.learn_s, 2),
         "sample_s": round(stats.sample_s, 2),
@@ -90,7 +93,14 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--samples", type=int, default=60_000)
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--seatings", nargs="+", default=list(SEATINGS), choices=SEATINGS)
+    parser.add_argument(
+        "--against",
+        default="oracle.update=rllib,lean",
+        help="KEY=A,B: the setting compared and its two values (default: %(default)s)",
+    )
     args = parser.parse_args(argv)
+    key, _, values = args.against.partition("=")
+    first, second = values.split(",")
 
     import ray
 
@@ -102,24 +112,27 @@ def main(argv: list[str] | None = None) -> dict:
     rows = []
     for _ in range(args.repeats):
         for seating in args.seatings:
-            for update in ("rllib", "lean"):
-                rows.append(measure(config, seating, update, args.samples))
+            for value in (first, second):
+                rows.append(measure(config, seating, key, value, args.samples))
                 print(json.dumps(rows[-1]), flush=True)
     ray.shutdown()
-    summary: dict = {"config": str(args.config), "sets": args.sets, "samples": args.samples}
+    summary: dict = {
+        "config": str(args.config),
+        "sets": args.sets,
+        "samples": args.samples,
+        "against": args.against,
+    }
     for seating in args.seatings:
         median = {
-            u: statistics.median(
-                r["learner_samples_per_s"]
-                for r in rows
-                if r["seating"] == seating and r["update"] == u
+            v: statistics.median(
+                r["learner_samples_per_s"] for r in rows if r["seating"] == seating and r[key] == v
             )
-            for u in ("rllib", "lean")
+            for v in (first, second)
         }
         summary[seating] = {
-            "rllib_per_s": median["rllib"],
-            "lean_per_s": median["lean"],
-            "ratio": round(median["lean"] / median["rllib"], 2),
+            f"{first}_per_s": median[first],
+            f"{second}_per_s": median[second],
+            "ratio": round(median[second] / median[first], 2),
         }
     print(json.dumps(summary), flush=True)
     return summary

@@ -90,6 +90,10 @@ class OracleConfig:
     frozen partners' rows dropped before GAE, minibatches cut by index, the loss's unused
     terms and per-minibatch logging left out; the same loss and gradients) or rllib (RLlib's
     own pipeline, iterator and loss: the reference the lean path is tested against)"""
+    overlap: bool = False
+    """true: the env runners sample the next train batch while the learner updates on this
+    one, one update behind it (hola_ray/oracle/overlap.py); needs remote env runners
+    (oracle.env_runners ≥ 1). false: RLlib's PPO, sampling and updating in turn"""
     sampler: str = "batched"
     """how env runners sample: batched (hola_ray/oracle/batched_runner.py: every vector env
     in one compiled step, one forward pass per module, episodes built in bulk) or
@@ -130,6 +134,7 @@ class OracleConfig:
             "true or false",
             self.horizon_terminates,
         )
+        require(isinstance(self.overlap, bool), "oracle.overlap", "true or false", self.overlap)
         require(
             self.update in UPDATES, "oracle.update", f"one of {', '.join(UPDATES)}", self.update
         )

@@ -388,6 +388,12 @@ class OracleLearner(PPOTorchLearner):
         super().build()
         extra = self.config.learner_config_dict
         self._lean = extra.get("update", "lean") == "lean"
+        if extra.get("overlap") and self.config.num_env_runners > 0:
+            # the env runners sample on their own CPUs during the update (oracle/overlap.py):
+            # the learner keeps to its own instead of spinning torch threads against them
+            from hola_ray.oracle.batched_runner import pin_threads
+
+            pin_threads(self.config.num_cpus_per_learner)
         """oracle.update: lean, or RLlib's own pipeline, iterator and loss"""
         self._last_stats: dict[str, Any] = {}
         """module id → the statistics of its last minibatch's loss, logged after the update"""

@@ -37,6 +37,7 @@ from hola_ray.oracle.config import OracleConfig, Seating
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.mep import OracleLearner
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitCatalog, PursuitPPOModule
+from hola_ray.oracle.overlap import OverlappedPPO
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.progress import progress as progress_bar
 
@@ -201,11 +202,15 @@ class Oracle:
             for m in self.modules
         }
         # read by the env runners (horizon) and the learner (update)
-        extra = {"horizon_terminates": o.horizon_terminates, "update": o.update}
+        extra = {
+            "horizon_terminates": o.horizon_terminates,
+            "update": o.update,
+            "overlap": o.overlap,
+        }
         if self.mep:
             extra |= {"mep_alpha": self.seating.mep_alpha, "mep_modules": self.members}
         return (
-            PPOConfig()
+            PPOConfig(algo_class=OverlappedPPO)
             .environment(ENV_NAME, env_config=env.to_dict())
             .env_runners(
                 env_runner_cls=BatchedEnvRunner if o.sampler == "batched" else None,
@@ -298,7 +303,7 @@ class Oracle:
     def train(self, budget: int, desc: str = "oracle", progress: bool = True) -> TrainStats:
         """Run PPO updates until `budget` is spent: environment steps sampled, or with
         `oracle.budget: learner_samples` the learner's own transitions consumed."""
-        done = iterations = 0
+        done = before = iterations = 0
         env_steps = 0
         wall = 0.0
         learn_before, samples_before, grads_before = self._learner_counts()
@@ -308,6 +313,10 @@ class Oracle:
         with progress_bar(budget, desc, unit, enabled=progress) as bar:
             while done < budget:
                 interrupt.check()
+                # overlapped sampling (oracle.overlap): ask for the next batch only if
+                # another iteration follows; the first one's size is the config's batch
+                step = done - before if iterations else self.config.train_batch
+                self.algo.prefetch = done + step < budget
                 start = time.perf_counter()
                 result = self.algo.train()
                 wall += time.perf_counter() - start
@@ -336,6 +345,9 @@ class Oracle:
                     std=f"{log[-1]['std_median']:.2f}",
                     sps=f"{env_steps / wall:.0f}",
                 )
+        # a batch asked for on a wrong guess is dropped: sampled with what `train` was given,
+        # it must not reach the update after φ or the partners change
+        self.algo.drain()
         learn, samples, grads = (
             now - then
             for now, then in zip(

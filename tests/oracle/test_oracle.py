@@ -451,3 +451,32 @@ def test_a_reset_learner_trains_on_with_its_new_hyperparameters_and_a_fresh_opti
         assert all(g["lr"] == pytest.approx(1.234e-4) for g in optim.param_groups)
     finally:
         oracle.reset_learner(before["lr"], before["entropy_coef"])
+
+
+def test_an_overlapped_oracle_samples_during_the_update_and_never_trains_on_an_old_phi():
+    """`oracle.overlap`: the next batch is asked for before each update but the last of a
+    `train` call, so after `set_phi` every trained episode follows the new φ."""
+    data = CONFIG.to_dict()
+    data["oracle"]["overlap"] = True
+    oracle = make_oracle(RunConfig.from_dict(data))
+    group = oracle.algo.learner_group
+    seen: list[tuple[int, set[str]]] = []  # per update: requests in flight, partner modules
+    update = group.update
+
+    def recording_update(*, episodes, **kwargs):
+        partners = {ep.module_for(a) for ep in episodes for a in ep.agent_ids} - {LEARNER}
+        seen.append((oracle.algo._in_flight, partners))
+        return update(episodes=episodes, **kwargs)
+
+    group.update = recording_update
+    try:
+        for target in (member_module(0), member_module(1)):
+            oracle.set_phi({target: 1.0})
+            seen.clear()
+            stats = oracle.train(1000, progress=False)  # batches of 400: three iterations
+            assert oracle.algo._in_flight == 0  # nothing left sampling with this φ
+            assert stats.iterations == 3 and 1000 <= stats.env_steps < 1400
+            assert [n for n, _ in seen] == [1, 1, 0]  # overlapped but for the last update
+            assert all(partners == {target} for _, partners in seen), seen
+    finally:
+        oracle.stop()
