@@ -11,11 +11,14 @@ name. A new method is one module with a `Method` subclass and one line in
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+import time
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from hola_ray.evaluation.rollout import rollout
 from hola_ray.oracle import Oracle
 from hola_ray.oracle.config import Seating
 from hola_ray.population.state import Decision, Population
@@ -34,6 +37,8 @@ class Built:
     states: list[dict[str, Any]]
     stats: TrainStats
     said: str
+    metrics: dict[str, float] = field(default_factory=dict)
+    """what generation 0's metrics row adds (`pretrain_*`: how pre-training stopped)"""
 
 
 @dataclass(frozen=True)
@@ -100,7 +105,8 @@ class Method:
     # ---- the generation loop ------------------------------------------------------------
     def build_population(self, trainer: Trainer) -> Built:
         """Generation 0: the initial members (default: MEP pre-training)."""
-        return pretrain_jointly(trainer, trainer.config.pretrain.alpha, "with MEP")
+        c = trainer.config
+        return pretrain_population(trainer, c.pretrain.alpha, "with MEP", c.pretrain.scheme)
 
     def before_training(self, trainer: Trainer, g: int, oracle: Oracle) -> int | None:
         """Called before generation g's Oracle trains; returns the population slot of the
@@ -118,15 +124,87 @@ class Method:
         return f"rejected (rank {decision.rank} > top {config.population.top_m})"
 
 
-def pretrain_jointly(trainer: Trainer, alpha: float, how: str) -> Built:
-    """`population.initial_size` members trained jointly for `pretrain.env_steps`, with
-    MEP's population-entropy bonus of weight `alpha` (0: plain joint training)."""
+def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -> Built:
+    """`population.initial_size` members trained together with MEP's population-entropy
+    bonus of weight `alpha` (0: none), each in self-play (`scheme` "self-play": one member
+    in every seat of an episode) or drawn per seat into mixed teams ("mixed"), for
+    `pretrain.env_steps`; with `pretrain.until_success`, judged every `check_every` env
+    steps as teams of their own copies and stopped once every member is competent."""
     c = trainer.config
-    n = c.population.initial_size
-    mep = Oracle(c.env, c.oracle, Seating(mep_members=n, mep_alpha=alpha), c.seed)
+    p, n = c.pretrain, c.population.initial_size
+    seating = Seating(mep_members=n, mep_alpha=alpha, mep_self_play=scheme == "self-play")
+    mep = Oracle(c.env, c.oracle, seating, c.seed)
+    parts: list[TrainStats] = []
+    metrics: dict[str, float] = {}
+    done, judge_s, stop = 0, 0.0, ""
     try:
-        stats = mep.train(c.pretrain.env_steps, desc="pre-train (MEP)", progress=trainer.progress)
+        while done < p.env_steps:
+            budget = min(p.check_every, p.env_steps - done) if p.until else p.env_steps
+            parts.append(mep.train(budget, desc="pre-train (MEP)", progress=trainer.progress))
+            done += parts[-1].env_steps
+            if not p.until:
+                continue
+            start = time.perf_counter()
+            figures = members_as_copies(c, mep)
+            judge_s += time.perf_counter() - start
+            competent = all(
+                f["success"] >= p.until_success and f["collision"] <= p.until_collision
+                for f in figures
+            )
+            metrics = {
+                "pretrain_members_success_min": round(min(f["success"] for f in figures), 4),
+                "pretrain_members_collision_max": round(max(f["collision"] for f in figures), 4),
+            }
+            trainer._say(
+                f"pre-train: {done:,} env steps; members as copies: success "
+                + ", ".join(f"{f['success']:.0%}" for f in figures)
+                + ", collision "
+                + ", ".join(f"{f['collision']:.0%}" for f in figures)
+            )
+            if competent:
+                stop = f"competent after {done:,} env steps"
+                break
+        else:
+            stop = f"{p.env_steps:,} env steps" + (", not all competent" if p.until else "")
         states = mep.weights(mep.members)
     finally:
         mep.stop()
-    return Built([states[m] for m in mep.members], stats, f"pre-trained {n} members {how}")
+    if p.until:
+        metrics |= {
+            "pretrain_competent": float(stop.startswith("competent")),
+            "pretrain_judge_s": round(judge_s, 2),
+        }
+    said = f"pre-trained {n} members {how} ({scheme}; {stop})"
+    return Built([states[m] for m in mep.members], summed(parts), said, metrics)
+
+
+def members_as_copies(config: RunConfig, oracle: Oracle) -> list[dict[str, float]]:
+    """Each of the Oracle's trained members as a team of its own copies, over
+    `pretrain.until_episodes` episodes (the same episodes for every member and check):
+    success and collision."""
+    states = oracle.weights(oracle.members)
+    out = []
+    for m in oracle.members:
+        team = [oracle.policy(states[m])] * config.env.n_pursuers
+        played = rollout(config.env, team, config.pretrain.until_episodes, seed=JUDGE_SEED)
+        out.append(
+            {"success": float(played.success.mean()), "collision": float(played.collision.mean())}
+        )
+    return out
+
+
+JUDGE_SEED = 7_000_003
+"""the run seed of the episodes pre-training's members are judged on"""
+
+
+def summed(parts: list[TrainStats]) -> TrainStats:
+    """Several `Oracle.train` calls as one: counts and times summed, the last call's returns,
+    every call's iterations in order."""
+    if not parts:
+        raise ValueError("no training to sum")
+    sums = ("env_steps", "iterations", "wall_s", "sample_s", "learn_s", "learner_samples")
+    return dataclasses.replace(
+        parts[-1],
+        **{k: sum(getattr(x, k) for x in parts) for k in (*sums, "gradient_steps")},
+        iteration_log=tuple(row for x in parts for row in x.iteration_log),
+    )

@@ -62,13 +62,47 @@ class PretrainConfig:
     """MEP pre-training of the initial population (paper §IV-B, pre-training phase)."""
 
     env_steps: int = 200_000
-    """environment steps of joint PPO training of the initial population"""
+    """environment steps of PPO training of the initial population; with `until_success`,
+    the most it may take"""
     alpha: float = 0.05
     """α: weight of the population mean policy's entropy bonus −log π̄(a|s), in [0, 1]"""
+    scheme: str = "self-play"
+    """self-play: each member in self-play, its own copies in every seat of an episode (as
+    MEP trains its population; the bonus's π̄ is over all members); mixed: the members
+    drawn per seat into mixed teams (the joint scheme before it, kept for ablation)"""
+    until_success: float = 0.0
+    """> 0: stop once every member, as a team of its own copies, succeeds in at least this
+    share of `until_episodes` episodes (and collides in at most `until_collision`),
+    judged every `check_every` env steps; 0: train for `env_steps`"""
+    until_collision: float = 1.0
+    """the most collision of every member as a team of its own copies, with `until_success`"""
+    until_episodes: int = 300
+    """episodes per member at each check"""
+    check_every: int = 200_000
+    """environment steps between checks"""
 
     def validate(self) -> None:
         positive_int("pretrain", self, "env_steps", maximum=10**11)
         finite_in("pretrain", self, "alpha", 0.0, 1.0, "in [0, 1]")
+        require(
+            self.scheme in PRETRAIN_SCHEMES,
+            "pretrain.scheme",
+            " or ".join(PRETRAIN_SCHEMES),
+            self.scheme,
+        )
+        finite_in("pretrain", self, "until_success", 0.0, 1.0, "in [0, 1] (0: off)")
+        finite_in("pretrain", self, "until_collision", 0.0, 1.0, "in [0, 1]")
+        positive_int("pretrain", self, "until_episodes", maximum=10**6)
+        positive_int("pretrain", self, "check_every", maximum=10**11)
+
+    @property
+    def until(self) -> bool:
+        """Whether pre-training stops at competence (else after `env_steps`)."""
+        return self.until_success > 0
+
+
+PRETRAIN_SCHEMES = ("self-play", "mixed")
+"""`pretrain.scheme`: how MEP's members share the episodes"""
 
 
 EVALUATION_POOLS = ("hot", "het")

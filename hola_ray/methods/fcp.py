@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 from hola_ray.env.checks import positive_int, require
-from hola_ray.methods.base import Built, Method
+from hola_ray.methods.base import Built, Method, summed
 from hola_ray.oracle import LEARNER, Oracle
 from hola_ray.oracle.config import Seating
 
@@ -68,11 +68,7 @@ class FCP(Method):
                     states.append(oracle.weights([LEARNER])[LEARNER])
             finally:
                 oracle.stop()
-        total = dataclasses.replace(
-            parts[-1],
-            **{k: sum(getattr(p, k) for p in parts) for k in ("env_steps", "wall_s", "sample_s")},
-            learn_s=sum(p.learn_s for p in parts),
-        )
+        total = summed(parts)
         said = f"trained {c.fcp.agents} self-play agent(s) for FCP ({len(states)} checkpoints)"
         return Built(states, total, said)
 

@@ -16,7 +16,7 @@ import ray
 
 from hola_ray.env.checks import finite_in, require
 from hola_ray.hypergraph import centrality, rank_of
-from hola_ray.methods.base import Built, Method, Uniform, pretrain_jointly
+from hola_ray.methods.base import Built, Method, Uniform, pretrain_population
 from hola_ray.oracle import LEARNER, Oracle
 from hola_ray.population.state import Decision, Population
 
@@ -118,7 +118,7 @@ class PBT(Method):
         return ExploitExplore(config.pbt.quantile, config.pbt.perturb, o.lr, o.entropy_coef)
 
     def build_population(self, trainer: Trainer) -> Built:
-        return pretrain_jointly(trainer, 0.0, "jointly (PBT's start)")
+        return pretrain_population(trainer, 0.0, "jointly (PBT's start)", "mixed")
 
     def before_training(self, trainer: Trainer, g: int, oracle: Oracle) -> int:
         """Generation g trains agent (g − 1) mod K: its weights go into the learner, which

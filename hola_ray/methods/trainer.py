@@ -178,6 +178,7 @@ class Trainer:
             "pretrain_s": round(pretrain_s, 2),
             "pretrain_env_steps_per_s": round(stats.env_steps_per_s, 1),
             **{f"pretrain_{k}": round(v, 4) for k, v in stats.spread.items()},
+            **built.metrics,
             **_edge_summary("population", results),
             **grapher,
             "coordinator_s": round(time.perf_counter() - start, 4),

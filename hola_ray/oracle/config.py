@@ -182,7 +182,8 @@ class Seating:
     """Who the Oracle's modules are and where they sit: a learner beside `partners` frozen
     partner modules drawn by φ, the learner alone in every seat (self-play, `partners` 0),
     or `mep_members` members trained jointly with the population-entropy bonus `mep_alpha`
-    (MEP pre-training; α 0 is plain joint training)."""
+    (MEP pre-training; α 0 is plain joint training): each episode one member in every seat
+    (`mep_self_play`, as MEP trains its population), or a member drawn per seat."""
 
     partners: int = 0
     """frozen partner modules `member_0` … (one per population slot); 0 = self-play"""
@@ -190,6 +191,9 @@ class Seating:
     """> 0: MEP pre-training of that many members, every seat a member"""
     mep_alpha: float = 0.0
     """α of MEP's entropy bonus −log π̄(a|s)"""
+    mep_self_play: bool = False
+    """MEP pre-training: each episode's seats all one member (drawn uniformly), not a member
+    drawn per seat"""
 
     @property
     def mep(self) -> bool:

@@ -23,16 +23,28 @@ def slot_of_agent(agent_id: str) -> int:
 
 class PartnerMapping:
     """A stateful `policy_mapping_fn`: per episode, the learner takes a uniformly random slot
-    (when there is a learner) and every other slot a module drawn from φ.
+    (when there is a learner) and every other slot a module drawn from φ; or, with
+    `whole_team`, one module drawn from φ plays every slot of the episode (MEP's members,
+    each in self-play).
 
     All draws of one episode come from a generator seeded by the episode id and `salt`, so
     the call for each agent of an episode sees the same assignment. φ changes between
     generations through `set_phi`, pushed into every env runner by the Oracle.
     """
 
-    def __init__(self, n_pursuers: int, phi: Mapping[str, float], learner: bool, salt: int = 0):
+    def __init__(
+        self,
+        n_pursuers: int,
+        phi: Mapping[str, float],
+        learner: bool,
+        salt: int = 0,
+        whole_team: bool = False,
+    ):
+        if learner and whole_team:
+            raise ValueError("a whole team of one module leaves no seat for the learner")
         self.n_pursuers = n_pursuers
         self.learner = learner
+        self.whole_team = whole_team
         self.salt = salt
         self.set_phi(phi)
 
@@ -55,7 +67,11 @@ class PartnerMapping:
         """The module of every pursuer slot in the episode `episode_id`."""
         digest = hashlib.blake2b(f"{episode_id}/{self.salt}".encode(), digest_size=8).digest()
         rng = np.random.default_rng(int.from_bytes(digest, "little"))
-        picks = rng.choice(len(self.modules), size=self.n_pursuers, p=self.probs)
+        picks = rng.choice(
+            len(self.modules), size=1 if self.whole_team else self.n_pursuers, p=self.probs
+        )
+        if self.whole_team:
+            picks = np.repeat(picks, self.n_pursuers)
         out = [self.modules[k] for k in picks]
         if self.learner:
             out[int(rng.integers(self.n_pursuers))] = LEARNER

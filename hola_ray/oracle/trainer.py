@@ -162,7 +162,12 @@ class Oracle:
             slots = range(seating.mep_members if self.mep else seating.partners)
             self.members = [member_module(s) for s in slots]
             self.modules = self.members if self.mep else [LEARNER, *self.members]
-            self.mapping = PartnerMapping(n_p, {m: 1.0 for m in self.members}, learner=not self.mep)
+            self.mapping = PartnerMapping(
+                n_p,
+                {m: 1.0 for m in self.members},
+                learner=not self.mep,
+                whole_team=seating.mep_self_play,
+            )
         self.trained = self.members if self.mep else [LEARNER]
         self.counts_samples = config.budget == "learner_samples" and not self.mep
         """`train(n)` counts the learner's own transitions (not env steps); MEP pre-training

@@ -149,6 +149,42 @@ def test_pbt_trains_its_agents_in_turn_and_exploits_the_best(tmp_path, capsys):
         assert torch.equal(w1, w2)
 
 
+def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_competent(
+    tmp_path, capsys, monkeypatch
+):
+    """pretrain.until_success: the members are judged as teams of their own copies every
+    check_every env steps. Never competent (success 1.0 asked): they train to the cap and
+    metrics.csv says so; competent at the second check (the judge's figures replaced):
+    pre-training stops there, with half the env steps."""
+    from hola_ray.methods import base
+
+    smoke = yaml.safe_load(SMOKE.read_text())
+    until = {"env_steps": 4000, "check_every": 1000, "until_episodes": 6}
+    capped = smoke | {"generations": 0, "pretrain": until | {"until_success": 1.0}}
+    said = train(capped, tmp_path / "capped", capsys)
+    assert said.count("pre-train: ") == 4 and "members as copies: success" in said
+    assert "(self-play; 4,000 env steps, not all competent)" in said
+    (row,) = RunDir(tmp_path / "capped").metrics_rows()
+    assert row["pretrain_competent"] == 0 and row["pretrain_env_steps"] >= 4000
+    assert 0 <= row["pretrain_members_success_min"] < 1.0
+
+    judged = []
+    real = base.members_as_copies
+
+    def judge(config, oracle):
+        judged.append(real(config, oracle))  # played, then called competent the second time
+        ok = {"success": 0.9, "collision": 0.1}
+        return [ok] * len(judged[-1]) if len(judged) == 2 else judged[-1]
+
+    monkeypatch.setattr(base, "members_as_copies", judge)
+    goal = {"until_success": 0.85, "until_collision": 0.15}
+    said = train(smoke | {"generations": 0, "pretrain": until | goal}, tmp_path / "ok", capsys)
+    assert len(judged) == 2 and "competent after 2," in said
+    (row,) = RunDir(tmp_path / "ok").metrics_rows()
+    assert row["pretrain_competent"] == 1 and 2000 <= row["pretrain_env_steps"] < 3000
+    assert row["pretrain_members_success_min"] == 0.9
+
+
 def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(
     tmp_path, capsys, mep_zero
 ):

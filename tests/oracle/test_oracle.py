@@ -91,6 +91,18 @@ def test_mapping_is_consistent_within_an_episode_and_follows_phi():
     assert abs(share_a - 0.75) < 4 * np.sqrt(0.75 * 0.25 / len(partners))
 
 
+def test_a_whole_team_mapping_seats_one_member_in_every_slot_drawn_by_phi():
+    """MEP's members in self-play: each episode one module, drawn from φ, in every seat."""
+    m = PartnerMapping(3, {"a": 3.0, "b": 1.0}, learner=False, whole_team=True, salt=5)
+    draws = [m.assignment(f"ep{k}") for k in range(4000)]
+    assert all(len(set(d)) == 1 and len(d) == 3 for d in draws)
+    assert draws[7] == m.assignment("ep7")
+    share_a = sum(d[0] == "a" for d in draws) / len(draws)
+    assert abs(share_a - 0.75) < 4 * np.sqrt(0.75 * 0.25 / len(draws))
+    with pytest.raises(ValueError, match="no seat for the learner"):
+        PartnerMapping(3, {"a": 1.0}, learner=True, whole_team=True)
+
+
 def test_frozen_partner_acts_with_the_pushed_weights(oracle):
     before = MLPPolicy(
         CONFIG.env, CONFIG.export(oracle.weights([member_module(1)])[member_module(1)])
@@ -276,6 +288,35 @@ def test_self_play_seats_the_learner_in_every_slot():
     for mapping in episodes:
         assert mapping == {f"pursuer_{i}": LEARNER for i in range(3)}
     assert stats.module_return.keys() <= {LEARNER}
+
+
+def test_mep_in_self_play_seats_one_member_in_every_slot_of_an_episode():
+    """MEP pre-training as MEP trains it: every episode is one member's self-play, and every
+    member gets episodes."""
+    from hola_ray.oracle import Oracle
+    from hola_ray.oracle.config import Seating
+
+    seating = Seating(mep_members=3, mep_alpha=0.05, mep_self_play=True)
+    oracle = Oracle(CONFIG.env, CONFIG.oracle, seating, seed=0)
+    try:
+
+        def modules(runner):
+            return [
+                {aid: ep.module_for(aid) for aid in ep.agent_ids}
+                for ep in runner.sample(num_timesteps=600, force_reset=True)
+            ]
+
+        seen = oracle.algo.env_runner_group.foreach_env_runner(modules, local_env_runner=False)
+        stats = oracle.train(400, progress=False)
+    finally:
+        oracle.stop()
+    episodes = [m for runner in seen for m in runner]
+    assert len(episodes) >= 8
+    teams = [set(mapping.values()) for mapping in episodes]
+    assert all(len(mapping) == 3 for mapping in episodes)
+    assert all(len(team) == 1 for team in teams)
+    assert set().union(*teams) == {member_module(k) for k in range(3)}
+    assert stats.module_return.keys() <= {member_module(k) for k in range(3)}
 
 
 def test_train_runs_updates_until_its_steps_and_logs_each(local_learner, oracle):
