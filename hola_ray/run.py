@@ -43,6 +43,7 @@ DEFAULT: dict[str, Any] = {
         "vf_coef": 0.5,
         "hidden": [64, 64],
         "envs_per_runner": 64,
+        "overlap": True,
     },
     "pretrain": {"env_steps": 100_000, "alpha": 0.05},
     "population": {"max_size": 6, "initial_size": 4, "top_m": 3},

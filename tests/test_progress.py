@@ -28,7 +28,8 @@ def test_a_disabled_progress_says_nothing(capsys):
 
 def test_a_command_reruns_itself_under_the_fixed_hash_seed(tmp_path):
     """Without PYTHONHASHSEED the command re-runs as `python -m <module>` with it set to 0,
-    so two runs hash strings alike; `hola_ray.run` does it before its heavy imports."""
+    so two runs hash strings alike; `hola_ray.run` and `hola_ray.experiment` do it before
+    their heavy imports."""
     import os
     import subprocess
     import sys
@@ -50,7 +51,13 @@ def test_a_command_reruns_itself_under_the_fixed_hash_seed(tmp_path):
     first = said()
     assert first.startswith("0 ") and first.strip().endswith("['--x', '1']")
     assert said() == first
-    # the main job's module imports no torch, Ray or RLlib before it re-runs itself
-    probe = "import sys, hola_ray.run; print(sorted({'torch', 'ray'} & set(sys.modules)))"
+    # the commands' modules import no torch, Ray or RLlib before they re-run themselves
+    for modules in ("hola_ray.run", "hola_ray.experiment, hola_ray.experiment.command"):
+        probe = f"import sys, {modules}; print(sorted({{'torch', 'ray'}} & set(sys.modules)))"
+        cmd = [sys.executable, "-c", probe]
+        out = subprocess.run(cmd, env=env, capture_output=True, text=True)
+        assert out.stdout.strip() == "[]", (modules, out.stderr[-2000:])
+    # and the experiment's names still load, each from its module
+    probe = "import hola_ray.experiment as e; print(e.Runner.__module__, e.trial_state.__name__)"
     out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True)
-    assert out.stdout.strip() == "[]", out.stderr[-2000:]
+    assert out.stdout.split() == ["hola_ray.experiment.runner", "trial_state"], out.stderr[-2000:]

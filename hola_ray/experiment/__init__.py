@@ -50,19 +50,50 @@ method, the paired differences, results.md) and `command` (`python -m hola_ray.e
 `hola-experiment`).
 """
 
-from hola_ray.experiment.config import (
-    CONFIG_NAME,
-    ROOT,
-    EvaluationSettings,
-    Experiment,
-    deep_merge,
-    parse_trial,
-    trial_name,
-)
-from hola_ray.experiment.mirror import DirectorySync, Mirror, pack, unpack, write_tree
-from hola_ray.experiment.results import EVALUATION_FORMAT, aggregate, results_table
-from hola_ray.experiment.runner import Runner
-from hola_ray.experiment.tasks import MARK, sees, trial_state
+from typing import TYPE_CHECKING
+
+# Every name is imported from its module on first use (`__getattr__` below), so that `python
+# -m hola_ray.experiment` re-runs itself under the fixed hash seed (`command.script`) before
+# it imports the methods, torch, Ray or RLlib.
+_WHERE = {
+    "CONFIG_NAME": "config",
+    "ROOT": "config",
+    "EvaluationSettings": "config",
+    "Experiment": "config",
+    "deep_merge": "config",
+    "parse_trial": "config",
+    "trial_name": "config",
+    "DirectorySync": "mirror",
+    "Mirror": "mirror",
+    "pack": "mirror",
+    "unpack": "mirror",
+    "write_tree": "mirror",
+    "EVALUATION_FORMAT": "results",
+    "aggregate": "results",
+    "results_table": "results",
+    "Runner": "runner",
+    "MARK": "tasks",
+    "sees": "tasks",
+    "trial_state": "tasks",
+    "main": "command",
+    "script": "command",
+}
+
+if TYPE_CHECKING:
+    from hola_ray.experiment.command import main, script
+    from hola_ray.experiment.config import (
+        CONFIG_NAME,
+        ROOT,
+        EvaluationSettings,
+        Experiment,
+        deep_merge,
+        parse_trial,
+        trial_name,
+    )
+    from hola_ray.experiment.mirror import DirectorySync, Mirror, pack, unpack, write_tree
+    from hola_ray.experiment.results import EVALUATION_FORMAT, aggregate, results_table
+    from hola_ray.experiment.runner import Runner
+    from hola_ray.experiment.tasks import MARK, sees, trial_state
 
 __all__ = [
     "CONFIG_NAME",
@@ -90,10 +121,9 @@ __all__ = [
 
 
 def __getattr__(name: str):
-    """`main` and `script` (`hola_ray.experiment.command`), imported on first use, so that
-    `python -m hola_ray.experiment.command` finds that module not yet imported."""
-    if name in ("main", "script"):
-        from hola_ray.experiment import command
+    """The public names, each imported from its module (`_WHERE`) on first use."""
+    if name in _WHERE:
+        import importlib
 
-        return getattr(command, name)
+        return getattr(importlib.import_module(f"hola_ray.experiment.{_WHERE[name]}"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

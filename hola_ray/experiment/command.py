@@ -15,10 +15,6 @@ from pathlib import Path
 
 import yaml
 
-from hola_ray.env.config import ConfigError
-from hola_ray.experiment.config import CONFIG_NAME, Experiment
-from hola_ray.experiment.runner import Runner
-
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
@@ -29,6 +25,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--resume", type=Path, metavar="DIR", help="continue an experiment")
     parser.add_argument("--num-cpus", type=int, help="CPUs of the local Ray (default: all)")
     args = parser.parse_args(argv)
+    # imported here, not above: `script` re-runs the command under the fixed hash seed
+    # before torch, Ray and RLlib (which the experiment's methods import) load
+    from hola_ray.env.config import ConfigError
+    from hola_ray.experiment.config import CONFIG_NAME, Experiment
+    from hola_ray.experiment.runner import Runner
+
     try:
         if args.resume is not None:
             if args.config is not None or args.out is not None:
