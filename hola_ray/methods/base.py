@@ -78,6 +78,9 @@ class Method:
     shares_generation_zero: ClassVar[bool] = False
     """generation 0 is MEP's population, the same for every method that says so: one run
     may adopt another's (`RunConfig.generation_zero_key`)"""
+    population_kind: ClassVar[str | None] = "mep"
+    """what builds its generation 0 (`build_population`): a shipped population of the same
+    kind may replace it (`pretrain.population`); None: the method has no population"""
     section: ClassVar[tuple[str, type] | None] = None
     """the method's own run-config section (name, frozen dataclass with `validate()`), or
     None; `config.<name>` reads it"""
@@ -97,6 +100,10 @@ class Method:
         if self.self_play:
             return Seating()
         return Seating(partners=config.population.max_size)
+
+    def population_size(self, config: RunConfig) -> int:
+        """How many members `build_population` builds."""
+        return config.population.initial_size
 
     def rules(self, config: RunConfig) -> Any:
         """The coordinator's `Rules` for this run (`hola_ray.population.rules`)."""

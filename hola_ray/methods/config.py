@@ -80,6 +80,10 @@ class PretrainConfig:
     """episodes per member at each check"""
     check_every: int = 200_000
     """environment steps between checks"""
+    population: str = "none"
+    """a shipped population (pools/populations/<name>, or a folder with its manifest) taken
+    as generation 0 instead of pre-training; `{seed}` in the name is the run's seed
+    (`hola_ray.population.shipped`); none: pre-train"""
 
     def validate(self) -> None:
         positive_int("pretrain", self, "env_steps", maximum=10**11)
@@ -94,6 +98,17 @@ class PretrainConfig:
         finite_in("pretrain", self, "until_collision", 0.0, 1.0, "in [0, 1]")
         positive_int("pretrain", self, "until_episodes", maximum=10**6)
         positive_int("pretrain", self, "check_every", maximum=10**11)
+        require(
+            isinstance(self.population, str) and bool(self.population),
+            "pretrain.population",
+            "none or a shipped population's name or folder",
+            self.population,
+        )
+
+    @property
+    def shipped(self) -> bool:
+        """Whether generation 0 is a shipped population."""
+        return self.population != "none"
 
     @property
     def until(self) -> bool:
@@ -190,6 +205,12 @@ class RunConfig:
             section.validate()
         self.validation.validate()
         self.strategy.validate(self)
+        require(
+            not self.pretrain.shipped or self.strategy.population_kind is not None,
+            "pretrain.population",
+            f"none for method {self.method} (it has no population)",
+            self.pretrain.population,
+        )
 
     def __getattr__(self, name: str) -> Any:
         """A method's own section: `config.fcp`, `config.pbt`."""
@@ -207,6 +228,21 @@ class RunConfig:
         """The plain-torch export (`MLPPolicy`) of an RLlib module state of this config,
         with the scenario it was trained in."""
         return self.oracle.export(state, self.env)
+
+    def layout(self) -> dict[str, Any]:
+        """What a partner must share with this run to be seated in it: the scenario's size,
+        the observation, the network, the action distribution and the proximity features
+        (a shipped population is refused unless it has the same, `population.shipped`), as
+        plain JSON values."""
+        layout = {
+            "n_pursuers": self.env.n_pursuers,
+            "n_evaders": self.env.n_evaders,
+            "obs_dim": self.env.obs_dim,
+            "hidden": list(self.oracle.hidden),
+            "action_dist": self.oracle.action_dist,
+            "features": self.oracle.model_features(self.env),
+        }
+        return json.loads(json.dumps(layout))
 
     def generation_zero_key(self) -> str | None:
         """What generation 0 (the pre-trained population and G_0) depends on, as a string:

@@ -35,7 +35,11 @@ class FCPConfig:
 
 class FCP(Method):
     joins: ClassVar[bool] = False
+    population_kind: ClassVar[str | None] = "fcp"
     section = ("fcp", FCPConfig)
+
+    def population_size(self, config: RunConfig) -> int:
+        return 3 * config.fcp.agents
 
     def validate(self, config: RunConfig) -> None:
         members = 3 * config.fcp.agents

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import ray
@@ -112,6 +112,7 @@ class ExploitExplore:
 
 class PBT(Method):
     section = ("pbt", PBTConfig)
+    population_kind: ClassVar[str | None] = "pbt"
 
     def rules(self, config: RunConfig) -> ExploitExplore:
         o = config.oracle

@@ -34,6 +34,7 @@ from hola_ray.evaluation.teams import play
 from hola_ray.methods.config import RunConfig
 from hola_ray.oracle import LEARNER, Oracle
 from hola_ray.policies.learned import MLPPolicy
+from hola_ray.population import shipped
 from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name, run_id
 from hola_ray.population.grapher import evaluate_edges, evaluate_edges_here
 from hola_ray.population.lock import RunLock
@@ -141,8 +142,14 @@ class Trainer:
     def _adopt(self) -> None:
         """A fresh run whose generation 0 another run already built (`adopt_from`, the same
         `generation_zero_key`) takes it instead of pre-training again."""
-        key = self.config.generation_zero_key()
-        if key is None or self.run.last_completed() is not None:
+        c = self.config
+        if self.run.last_completed() is not None:
+            return
+        if c.pretrain.shipped:
+            self._adopt_shipped()
+            return
+        key = c.generation_zero_key()
+        if key is None:
             return
         for folder in self.adopt_from:
             donor = RunDir(folder)
@@ -154,6 +161,23 @@ class Trainer:
             self.run.adopt_generation_zero(donor)
             self._say(f"gen 0: adopted from {donor.root.name} (the same pre-training and G_0)")
             return
+
+    def _adopt_shipped(self) -> None:
+        """Generation 0 is a shipped population (`pretrain.population`), verified, fitting
+        the run's layout and apart from every pool (`hola_ray.population.shipped`)."""
+        c = self.config
+        kind, size = c.strategy.population_kind, c.strategy.population_size(c)
+        donor, manifest = shipped.load(c.pretrain.population, c.seed, c.layout(), kind)
+        if len(manifest["members"]) != size:
+            raise shipped.PopulationError(
+                f"population {donor.root.name} holds {len(manifest['members'])} members; "
+                f"method {c.method} with this config builds {size}"
+            )
+        self.run.adopt_generation_zero(donor)
+        self._say(
+            f"gen 0: the shipped population {donor.root.name} ({size} members, built at "
+            f"commit {str(manifest.get('commit'))[:8]}, seed {manifest.get('seed')})"
+        )
 
     def _pretrain(self) -> dict[str, Any]:
         c = self.config

@@ -219,6 +219,79 @@ def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(
     assert RunConfig.from_dict(other).generation_zero_key() != key
 
 
+def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does_not_fit(
+    tmp_path, capsys, monkeypatch
+):
+    """`python -m hola_ray.populations build` on a tiny population config: the manifest
+    names every member's files, hashes, role and team figures; a run with
+    `pretrain.population` takes that generation 0 and trains on; a changed file, another
+    layout, another kind of population and a member that is a pool's are each refused in
+    one line."""
+    import json
+    import shutil
+
+    from hola_ray import populations
+    from hola_ray.evaluation.pools import POOLS_DIR
+    from hola_ray.population import shipped
+
+    configs, shelf = tmp_path / "configs", tmp_path / "shelf"
+    configs.mkdir()
+    monkeypatch.setattr(populations, "CONFIGS", configs)
+    monkeypatch.setattr(populations, "RUNS", tmp_path / "runs")
+    monkeypatch.setattr(populations, "POPULATIONS_DIR", shelf)
+    monkeypatch.setattr(shipped, "POPULATIONS_DIR", shelf)
+    smoke = yaml.safe_load(SMOKE.read_text()) | {"generations": 0}
+    (configs / "tiny-s0.yaml").write_text(yaml.safe_dump(smoke))
+    assert populations.main(["build", "tiny-s0", "--episodes", "4", "--quiet"]) == 0
+    said = capsys.readouterr().out
+    assert "population tiny-s0 written to" in said and "node_0" in said
+    folder = shelf / "tiny-s0"
+    manifest = json.loads((folder / "manifest.json").read_text())
+    assert manifest["kind"] == "mep" and manifest["seed"] == 0
+    assert manifest["layout"] == RunConfig.from_dict(smoke).layout()
+    assert len(manifest["members"]) == smoke["population"]["initial_size"]
+    for entry in manifest["members"].values():
+        assert entry["role"] == "member" and entry["scenario"] == "3v2"
+        assert entry["team_episodes"] == 4 and 0 <= entry["team_success"] <= 1
+    assert "generations/gen_0000/edges.json" in manifest["generation_files"]
+
+    # adopted, by name with the run's seed, and trained on
+    run = smoke | {"generations": 1, "pretrain": {"population": "tiny-s{seed}"}}
+    said = train(run, tmp_path / "run", capsys)
+    assert "gen 0: the shipped population tiny-s0 (3 members" in said
+    r = RunDir(tmp_path / "run")
+    assert r.completed() == [0, 1] and r.metrics_rows()[0]["adopted_from"] == "tiny-s0"
+    for entry in manifest["members"].values():
+        assert (r.root / entry["file"]).read_bytes() == (folder / entry["file"]).read_bytes()
+
+    def refused(patch: dict, folder_used=folder) -> str:
+        config = RunConfig.from_dict(smoke | {"pretrain": {"population": str(folder_used)}} | patch)
+        with pytest.raises(shipped.PopulationError) as err:
+            Trainer(config, tmp_path / f"refused-{len(list(tmp_path.iterdir()))}").fit()
+        return str(err.value)
+
+    narrow = {"oracle": smoke["oracle"] | {"hidden": [16, 16]}}
+    assert "hidden [32, 32], the run's [16, 16]" in refused(narrow)
+    assert "built by 'mep' pre-training" in refused({"method": "pbt"})
+    broken = tmp_path / "broken"
+    shutil.copytree(folder, broken)
+    export = broken / manifest["members"]["node_1"]["file"]
+    export.write_bytes(export.read_bytes() + b"x")
+    assert f"{export} has sha256" in refused({}, broken)
+    # a pool's member passed off as a population's (its hash recorded, so only the pool
+    # check stands between it and training)
+    pooled = tmp_path / "pooled"
+    shutil.copytree(folder, pooled)
+    entry = manifest["members"]["node_2"]
+    shutil.copyfile(POOLS_DIR / "validation" / "sp-v1.pt", pooled / entry["file"])
+    forged = json.loads((pooled / "manifest.json").read_text())
+    forged["members"]["node_2"]["sha256"] = shipped.sha256(pooled / entry["file"])
+    (pooled / "manifest.json").write_text(json.dumps(forged))
+    assert "member node_2 is pool member validation/sp-v1" in refused({}, pooled)
+    assert populations.main(["show", str(folder)]) == 0
+    assert "as copies: success" in capsys.readouterr().out
+
+
 # ---- a new method: one class (here, in this file) and one registry line --------------------
 @dataclass(frozen=True)
 class FavouriteConfig:

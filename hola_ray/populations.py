@@ -1,0 +1,190 @@
+"""Competent populations, built once and shipped like the pools (SPEC §5).
+
+    python -m hola_ray.populations build NAME [--episodes 500] [--quiet]
+    python -m hola_ray.populations show [NAME]
+
+`build` trains generation 0 of `configs/populations/NAME.yaml` (a run config with
+`generations: 0`: MEP's members until each is competent as a team of its own copies, or
+FCP's self-play agents with their checkpoints) in `runs/populations/NAME` (a stopped build
+resumes there), plays every member as a team of its own copies on `--episodes` episodes,
+and writes `pools/populations/NAME/`: the members' exports and RLlib states, generation 0
+(G_0's hyperedge weights in `edges.json`) and a manifest with every file's sha256, each
+member's role and team figures, and the commit, config and seed that built it. A run takes
+it with `pretrain.population: NAME` (`{seed}` in the name is the run's seed); what loading
+checks is `hola_ray.population.shipped`. `show` verifies and prints them.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+from hola_ray.cli import OneLineParser, fail
+from hola_ray.evaluation.pools import ROOT
+from hola_ray.population.shipped import (
+    POPULATIONS_DIR,
+    PopulationError,
+    population_dir,
+    read,
+    verify,
+)
+from hola_ray.provenance import commit_id
+
+CONFIGS = ROOT / "configs" / "populations"
+RUNS = ROOT / "runs" / "populations"
+FIGURES_SEED = 9_100_000
+"""the run seed of the episodes each member is judged on as a team of its own copies"""
+
+
+def roles(method: str, nodes: list[int]) -> dict[int, str]:
+    """Each member's role: FCP's members are its agents' start, middle and end checkpoints,
+    in node order; every other population's are members."""
+    if method != "fcp":
+        return dict.fromkeys(nodes, "member")
+    parts = ("start", "middle", "end")
+    return {v: f"checkpoint-{parts[k % 3]}" for k, v in enumerate(sorted(nodes))}
+
+
+def team_figures(config: Any, export: dict[str, Any], episodes: int) -> dict[str, float]:
+    """A member as a team of its own copies: success and collision, and the episodes and
+    seed they were measured on (what a test replays)."""
+    from hola_ray.evaluation.rollout import rollout
+    from hola_ray.policies.learned import MLPPolicy
+
+    team = [MLPPolicy(config.env, export)] * config.env.n_pursuers
+    played = rollout(config.env, team, episodes, seed=FIGURES_SEED)
+    return {
+        "success": round(float(played.success.mean()), 4),
+        "collision": round(float(played.collision.mean()), 4),
+        "episodes": episodes,
+        "seed": FIGURES_SEED,
+    }
+
+
+def build(name: str, episodes: int, progress: bool = True) -> Path:
+    """Train (or resume) generation 0 of the population's config, then package it."""
+    import ray
+
+    from hola_ray.methods.config import RunConfig
+    from hola_ray.methods.trainer import Trainer
+    from hola_ray.population import shipped
+    from hola_ray.population.coordinator import NAMESPACE
+    from hola_ray.population.rundir import RunDir
+    from hola_ray.progress import init_local_ray
+
+    path = CONFIGS / f"{name}.yaml"
+    if not path.is_file():
+        known = ", ".join(sorted(p.stem for p in CONFIGS.glob("*.yaml"))) or "(none)"
+        raise PopulationError(f"no population config {path}; the configs: {known}")
+    config = RunConfig.from_yaml(path)
+    if config.generations != 0 or config.strategy.population_kind is None:
+        raise PopulationError(
+            f"{path}: a population config trains generation 0 only (generations: 0) of a "
+            "method with a population"
+        )
+    if not ray.is_initialized():
+        init_local_ray(namespace=NAMESPACE)
+    run = RunDir(RUNS / name)
+    Trainer(config, run.root, progress=progress).fit()
+    state = run.read_json(0, "state.json")
+    nodes = sorted(int(v) for v in state["population"]["slots"].values())
+    figures = {}
+    for v in nodes:
+        figures[v] = team_figures(config, run.load_member_export(v), episodes)
+        print(
+            f"[{name}] node {v}: as {config.env.n_pursuers} copies, success "
+            f"{figures[v]['success']:.1%}, collision {figures[v]['collision']:.1%}",
+            flush=True,
+        )
+    gen0 = run.read_json(0, "metrics.json")
+    out = POPULATIONS_DIR / name
+    shipped.package(
+        run.root,
+        out,
+        name=name,
+        kind=config.strategy.population_kind,
+        layout=config.layout(),
+        provenance={
+            "commit": commit_id(),
+            "config": str(path.relative_to(ROOT) if path.is_relative_to(ROOT) else path),
+            "config_values": config.to_dict(),
+            "seed": config.seed,
+            "method": config.method,
+            "built": {
+                k: gen0[k]
+                for k in ("pretrain_env_steps", "pretrain_s", "pretrain_competent")
+                if k in gen0
+            },
+        },
+        roles=roles(config.method, nodes),
+        figures=figures,
+        scenario=f"{config.env.n_pursuers}v{config.env.n_evaders}",
+    )
+    return out
+
+
+def show(population: str | Path) -> str:
+    folder = population_dir(population)
+    manifest = read(folder)
+    verify(folder, manifest)
+    built = manifest.get("built", {})
+    lines = [
+        f"population {manifest['population']} ({folder}): {manifest['kind']}, "
+        f"{len(manifest['members'])} members, seed {manifest['seed']}, built at commit "
+        f"{str(manifest['commit'])[:12]} from {manifest['config']}"
+        + (f", {built['pretrain_env_steps']:,} env steps" if "pretrain_env_steps" in built else "")
+    ]
+    for mid, e in manifest["members"].items():
+        lines.append(
+            f"  {mid:<8} {e['role']:<18} {e['scenario']}  as copies: success "
+            f"{e['team_success']:.1%}, collision {e['team_collision']:.1%} "
+            f"({e['team_episodes']} episodes); {e['file']} sha256 {e['sha256'][:12]}…"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = OneLineParser(
+        prog="python -m hola_ray.populations", description=__doc__.split("\n\n")[0]
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("build", help="train generation 0 of configs/populations/NAME.yaml")
+    b.add_argument("name")
+    b.add_argument("--episodes", type=int, default=500, help="episodes per member as copies")
+    b.add_argument("--quiet", action="store_true")
+    s = sub.add_parser("show", help="a shipped population's members, roles and figures")
+    s.add_argument("name", nargs="?", default=None, help="default: every shipped one")
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "build":
+            folder = build(args.name, args.episodes, not args.quiet)
+            print(f"population {args.name} written to {folder}")
+            print(show(folder))
+        else:
+            names = (
+                [args.name]
+                if args.name
+                else sorted(
+                    p.name for p in POPULATIONS_DIR.glob("*") if (p / "manifest.json").is_file()
+                )
+            )
+            if not names:
+                print(f"no population shipped in {POPULATIONS_DIR} yet")
+            for n in names:
+                print(show(n))
+    except PopulationError as err:
+        return fail(str(err))
+    return 0
+
+
+def script() -> None:
+    """`hola-populations` (`[project.scripts]`): `main` under the fixed hash seed."""
+    from hola_ray.progress import fixed_hash_seed
+
+    fixed_hash_seed("hola_ray.populations", sys.argv[1:])
+    sys.exit(main())
+
+
+if __name__ == "__main__":
+    script()
