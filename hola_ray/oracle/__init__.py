@@ -1,6 +1,12 @@
-"""The Oracle: RLlib multi-agent PPO whose partner mapping follows φ (SPEC §5)."""
+"""The Oracle: RLlib multi-agent PPO whose partner mapping follows φ (SPEC §5).
+
+Importing it applies `hola_ray.rllib_fixes.fast_connectors` in this process (the driver
+and every env runner, which imports `hola_ray.oracle.batched_runner`)."""
 
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.trainer import Oracle, TrainStats
+from hola_ray.rllib_fixes import fast_connectors
+
+fast_connectors()
 
 __all__ = ["LEARNER", "Oracle", "PartnerMapping", "TrainStats", "member_module"]
