@@ -121,6 +121,23 @@ def fixed_hash_seed(module: str, argv: list[str]) -> None:
     os.execve(sys.executable, [sys.executable, "-m", module, *argv], env)
 
 
+def pin_threads(cpus) -> None:
+    """torch and numba in this process on `cpus` threads (1 when RLlib says "auto").
+
+    Ray's OMP_NUM_THREADS=1 does not reach them: a remote env runner ran torch on 2 threads
+    and the simulator's parallel kernels on 2 OpenMP threads, which spin while another
+    process holds the second core. A sample of 8,192 env steps then took 4 s instead of
+    0.2 s beside a busy learner (on 2 cores; alone it is as fast on one thread); two
+    evaluation tasks side by side took 20 s instead of 1.4. Every Ray worker of this
+    project that steps the simulator or runs torch calls it with its CPU allotment."""
+    import numba
+    import torch
+
+    threads = cpus if isinstance(cpus, int) and cpus >= 1 else 1
+    torch.set_num_threads(threads)
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+
+
 def quiet_ray_noise() -> None:
     """Raise `NOISY_LOGGERS` to ERROR in this process (the driver, and as Ray's worker
     setup hook every worker). Ray's C++ core still prints its own lines."""

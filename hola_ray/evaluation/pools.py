@@ -25,6 +25,7 @@ import copy
 import dataclasses
 import hashlib
 import json
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -236,19 +237,25 @@ def load_validation(pool: str | Path, config: PursuitConfig) -> dict[str, Policy
     folder = pool_dir(pool)
     manifest = read_manifest(folder)
     held_out = {mid for ids in EVALUATION_POOLS.values() for mid in ids}
-    hashes = {
-        entry.get("sha256")
-        for name in EVALUATION_POOLS
-        if (POOLS_DIR / name / MANIFEST).is_file()
-        for entry in read_manifest(POOLS_DIR / name)["members"].values()
-        if entry.get("sha256")
-    }
+    hashes = pooled_files(EVALUATION_POOLS)
     for mid, entry in manifest["members"].items():
         if mid in held_out:
             raise PoolError(f"{folder}: member {mid} belongs to an evaluation pool")
         if entry.get("sha256") in hashes:
             raise PoolError(f"{folder}: member {mid}'s file is an evaluation pool member's")
     return load_pool(folder, config)
+
+
+def pooled_files(pools: Iterable[str] = POOLS) -> dict[str, str]:
+    """sha256 → "pool/member" of every committed member file of `pools` (default: the
+    evaluation pools and the validation set): files training never takes in as its own."""
+    out: dict[str, str] = {}
+    for name in pools:
+        if (POOLS_DIR / name / MANIFEST).is_file():
+            for mid, entry in read_manifest(POOLS_DIR / name)["members"].items():
+                if entry.get("sha256"):
+                    out[entry["sha256"]] = f"{name}/{mid}"
+    return out
 
 
 def validation_mates(config: PursuitConfig, count: int) -> list[Policy]:

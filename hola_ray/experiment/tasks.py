@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from hola_ray.methods.config import RunConfig
+from hola_ray.progress import pin_threads
 
 
 def trial_state(run_dir: Path, generations: int) -> tuple[str, int | None]:
@@ -62,6 +63,10 @@ def _run_trial(
     from hola_ray.experiment.mirror import DirectorySync, Mirror, unpack
     from hola_ray.methods.trainer import Trainer
 
+    # the trial's process (its learner, and its sampler when it has no env runners) on
+    # the CPUs its bundle holds: two trials side by side otherwise spin each other's
+    # OpenMP threads (`pin_threads`)
+    pin_threads(int(ray.get_runtime_context().get_assigned_resources().get("CPU", 1)))
     root, run_config = Path(run_dir), RunConfig.from_dict(config)
     if mirror is None:
         mirror = not sees(root, token)
@@ -90,6 +95,7 @@ def _run_trial(
 
 def _reference(pool: str, settings: dict[str, Any], n_evaders: int) -> np.ndarray:
     """A pool's reference returns for the BR-Prox score: computed once, for every trial."""
+    pin_threads(1)  # its one CPU: two such tasks side by side otherwise spin each other
     from hola_ray.env.config import PursuitConfig
     from hola_ray.evaluation.players import pool_label, pools
     from hola_ray.evaluation.zero_shot import cell_returns
@@ -104,6 +110,7 @@ def _evaluate_trial(
 ) -> dict[str, Any]:
     """A learner (its file's bytes, read by the driver: any node can evaluate it) against
     the pools."""
+    pin_threads(1)  # its one CPU (see `_reference`)
     import tempfile
 
     from hola_ray.env.config import PursuitConfig

@@ -57,6 +57,7 @@ from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitPPOModule
 from hola_ray.policies.learned import MLPPolicy, export_from_rllib
+from hola_ray.progress import pin_threads
 
 SKIP = MultiAgentEpisode.SKIP_ENV_TS_TAG
 
@@ -75,21 +76,6 @@ class _Episode:
         self.agent_t_started = np.zeros(n_p, dtype=np.int64)
         self.row = 0
         self.live = np.ones(n_p, dtype=bool)  # agents still acting at the chunk's start
-
-
-def pin_threads(cpus) -> None:
-    """torch and numba in this process on `cpus` threads (1 when RLlib says "auto").
-
-    Ray's OMP_NUM_THREADS=1 does not reach them: a remote env runner ran torch on 2 threads
-    and the simulator's parallel kernels on 2 OpenMP threads, which spin while another
-    process holds the second core. A sample of 8,192 env steps then took 4 s instead of
-    0.2 s beside a busy learner (on 2 cores; alone it is as fast on one thread)."""
-    import numba
-    import torch
-
-    threads = cpus if isinstance(cpus, int) and cpus >= 1 else 1
-    torch.set_num_threads(threads)
-    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
 
 
 class BatchedEnvRunner(MultiAgentEnvRunner):

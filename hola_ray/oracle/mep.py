@@ -391,7 +391,7 @@ class OracleLearner(PPOTorchLearner):
         if extra.get("overlap") and self.config.num_env_runners > 0:
             # the env runners sample on their own CPUs during the update (oracle/overlap.py):
             # the learner keeps to its own instead of spinning torch threads against them
-            from hola_ray.oracle.batched_runner import pin_threads
+            from hola_ray.progress import pin_threads
 
             pin_threads(self.config.num_cpus_per_learner)
         """oracle.update: lean, or RLlib's own pipeline, iterator and loss"""

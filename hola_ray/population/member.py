@@ -10,6 +10,7 @@ import numpy as np
 import ray
 
 from hola_ray.population.state import EdgeResult
+from hola_ray.progress import pin_threads
 
 
 def evaluate_team(
@@ -48,11 +49,7 @@ class Member:
 
     def __init__(self, node: int, export: Mapping[str, Any], env_config: Mapping[str, Any]):
         os.environ.setdefault("OMP_NUM_THREADS", "1")
-        import numba
-        import torch
-
-        numba.set_num_threads(1)
-        torch.set_num_threads(1)
+        pin_threads(1)
         self.node = node
         self.export = dict(export)
         self.env_config = dict(env_config)

@@ -25,11 +25,11 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from hola_ray.evaluation.pools import MANIFEST, POOLS, POOLS_DIR, read_manifest, sha256
+from hola_ray.evaluation.pools import MANIFEST, ROOT, pooled_files, sha256
 from hola_ray.population.rundir import RunDir
 
 FORMAT = "hola_ray.population/1"
-POPULATIONS_DIR = POOLS_DIR / "populations"
+POPULATIONS_DIR = ROOT / "pools" / "populations"
 NONE = "none"
 """`pretrain.population` when a run pre-trains its own generation 0"""
 
@@ -154,12 +154,7 @@ def check_layout(folder: Path, manifest: Mapping[str, Any], layout: Mapping[str,
 
 def check_apart_from_pools(folder: Path, manifest: Mapping[str, Any]) -> None:
     """No member file of the population is a pool member's (evaluation or validation)."""
-    pooled: dict[str, str] = {}
-    for pool in POOLS:
-        if (POOLS_DIR / pool / MANIFEST).is_file():
-            for mid, entry in read_manifest(POOLS_DIR / pool)["members"].items():
-                if entry.get("sha256"):
-                    pooled[entry["sha256"]] = f"{pool}/{mid}"
+    pooled = pooled_files()
     for mid, entry in manifest["members"].items():
         for key in ("sha256", "state_sha256"):
             if entry[key] in pooled:
