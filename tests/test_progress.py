@@ -58,6 +58,7 @@ def test_a_command_reruns_itself_under_the_fixed_hash_seed(tmp_path):
         out = subprocess.run(cmd, env=env, capture_output=True, text=True)
         assert out.stdout.strip() == "[]", (modules, out.stderr[-2000:])
     # and the experiment's names still load, each from its module
-    probe = "import hola_ray.experiment as e; print(e.Runner.__module__, e.trial_state.__name__)"
-    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True)
-    assert out.stdout.split() == ["hola_ray.experiment.runner", "trial_state"], out.stderr[-2000:]
+    import hola_ray.experiment as experiment
+
+    assert experiment.Runner.__module__ == "hola_ray.experiment.runner"
+    assert all(getattr(experiment, name) is not None for name in experiment.__all__)

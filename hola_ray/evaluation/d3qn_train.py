@@ -79,6 +79,9 @@ class D3QNSettings:
     """which validated network is exported: `best` (highest validation success, then
     lowest collision) or `nearest` (validation success nearest `target_success`, then
     lowest collision, then the earlier one)"""
+    env_runners: int = 1
+    """RLlib env runner actors; 0 samples in the training process (the tests' tiny runs:
+    no actor to start)"""
     target_success: float | None = None
     """the validation success `select: nearest` aims at (a pool member's paper Table II
     figure: the pool should be as strong as the paper's, not stronger)"""
@@ -90,6 +93,7 @@ class D3QNSettings:
         positive_int(s, self, "batch", "fragment", maximum=10**7)
         positive_int(s, self, "buffer", maximum=10**9)
         positive_int(s, self, "envs", maximum=65_536)
+        positive_int(s, self, "env_runners", minimum=0, maximum=1024)
         positive_int(s, self, "n_step", "decision_interval", maximum=10_000)
         positive_int(s, self, "validate_episodes", maximum=10**6)
         positive_int(
@@ -240,7 +244,9 @@ def algorithm_config(run: D3QNRun):
             ENV_NAME, env_config={**run.env.to_dict(), "decision_interval": s.decision_interval}
         )
         .env_runners(
-            num_env_runners=1, num_envs_per_env_runner=s.envs, rollout_fragment_length=s.fragment
+            num_env_runners=s.env_runners,
+            num_envs_per_env_runner=s.envs,
+            rollout_fragment_length=s.fragment,
         )
         .multi_agent(policies={MODULE}, policy_mapping_fn=lambda aid, ep, **kw: MODULE)
         .rl_module(

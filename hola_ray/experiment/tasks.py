@@ -63,10 +63,9 @@ def _run_trial(
     from hola_ray.experiment.mirror import DirectorySync, Mirror, unpack
     from hola_ray.methods.trainer import Trainer
 
-    # the trial's process (its learner, and its sampler when it has no env runners) on
-    # the CPUs its bundle holds: two trials side by side otherwise spin each other's
-    # OpenMP threads (`pin_threads`)
-    pin_threads(int(ray.get_runtime_context().get_assigned_resources().get("CPU", 1)))
+    # Not `pin_threads`: the learner's torch threads set how its gradients are summed, and
+    # a trial must train as `python -m hola_ray.run` of its config does (a test compares
+    # them); pinned to its one CPU it read returns 1e-8 apart.
     root, run_config = Path(run_dir), RunConfig.from_dict(config)
     if mirror is None:
         mirror = not sees(root, token)

@@ -155,17 +155,17 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     """pretrain.until_success: the members are judged as teams of their own copies every
     check_every env steps. Never competent (success 1.0 asked): they train to the cap and
     metrics.csv says so; competent at the second check (the judge's figures replaced):
-    pre-training stops there, with half the env steps."""
+    pre-training stops there, with half the cap's env steps."""
     from hola_ray.methods import base
 
     smoke = yaml.safe_load(SMOKE.read_text())
     until = {"env_steps": 4000, "check_every": 1000, "until_episodes": 6}
-    capped = smoke | {"generations": 0, "pretrain": until | {"until_success": 1.0}}
-    said = train(capped, tmp_path / "capped", capsys)
-    assert said.count("pre-train: ") == 4 and "members as copies: success" in said
-    assert "(self-play; 4,000 env steps, not all competent)" in said
+    never = until | {"env_steps": 2000, "until_success": 1.0}
+    said = train(smoke | {"generations": 0, "pretrain": never}, tmp_path / "capped", capsys)
+    assert said.count("pre-train: ") == 2 and "members as copies: success" in said
+    assert "(self-play; 2,000 env steps, not all competent)" in said
     (row,) = RunDir(tmp_path / "capped").metrics_rows()
-    assert row["pretrain_competent"] == 0 and row["pretrain_env_steps"] >= 4000
+    assert row["pretrain_competent"] == 0 and row["pretrain_env_steps"] >= 2000
     assert 0 <= row["pretrain_members_success_min"] < 1.0
 
     judged = []

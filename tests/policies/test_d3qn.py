@@ -69,7 +69,12 @@ def dqn(ray_session, tmp_path_factory):
         seed=3,
         env=dataclasses.replace(ONE, horizon=60),
         d3qn=D3QNSettings(
-            env_steps=300, learning_starts=50, hidden=(16, 8), head_hidden=(8,), envs=2
+            env_steps=300,
+            learning_starts=50,
+            hidden=(16, 8),
+            head_hidden=(8,),
+            envs=2,
+            env_runners=0,
         ),
     )
     algo = build(run)
@@ -209,6 +214,7 @@ def test_training_exports_the_best_validated_network(ray_session, tmp_path):
                     "hidden": [16],
                     "head_hidden": [8],
                     "envs": 2,
+                    "env_runners": 0,
                     "training_intensity": 2,
                 },
             }
