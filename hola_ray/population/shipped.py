@@ -149,7 +149,10 @@ def check_layout(folder: Path, manifest: Mapping[str, Any], layout: Mapping[str,
     differ = sorted(k for k in set(shipped) | set(layout) if shipped.get(k) != layout.get(k))
     if differ:
         said = "; ".join(f"{k} {shipped.get(k)!r}, the run's {layout.get(k)!r}" for k in differ)
-        raise PopulationError(f"population {folder.name} does not fit this run ({said})")
+        raise PopulationError(
+            f"population {folder.name} does not fit this run ({said}); pre-train instead "
+            "with pretrain.population: none"
+        )
 
 
 def check_apart_from_pools(folder: Path, manifest: Mapping[str, Any]) -> None:
@@ -174,7 +177,8 @@ def load(
     if manifest.get("kind") != kind:
         raise PopulationError(
             f"population {folder.name} was built by {manifest.get('kind')!r} pre-training; "
-            f"this run's method builds {kind!r} populations"
+            f"this run's method builds {kind!r} populations (pre-train instead with "
+            "pretrain.population: none)"
         )
     verify(folder, manifest)
     check_layout(folder, manifest, layout)
