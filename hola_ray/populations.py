@@ -25,6 +25,8 @@ from hola_ray.evaluation.pools import ROOT
 from hola_ray.population.shipped import (
     POPULATIONS_DIR,
     PopulationError,
+    names,
+    package,
     population_dir,
     read,
     verify,
@@ -68,7 +70,6 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
 
     from hola_ray.methods.config import RunConfig
     from hola_ray.methods.trainer import Trainer
-    from hola_ray.population import shipped
     from hola_ray.population.coordinator import NAMESPACE
     from hola_ray.population.rundir import RunDir
     from hola_ray.progress import init_local_ray
@@ -99,7 +100,7 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
         )
     gen0 = run.read_json(0, "metrics.json")
     out = POPULATIONS_DIR / name
-    shipped.package(
+    package(
         run.root,
         out,
         name=name,
@@ -162,16 +163,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"population {args.name} written to {folder}")
             print(show(folder))
         else:
-            names = (
-                [args.name]
-                if args.name
-                else sorted(
-                    p.name for p in POPULATIONS_DIR.glob("*") if (p / "manifest.json").is_file()
-                )
-            )
-            if not names:
+            shown = [args.name] if args.name else names()
+            if not shown:
                 print(f"no population shipped in {POPULATIONS_DIR} yet")
-            for n in names:
+            for n in shown:
                 print(show(n))
     except PopulationError as err:
         return fail(str(err))

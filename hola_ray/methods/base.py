@@ -209,9 +209,10 @@ def summed(parts: list[TrainStats]) -> TrainStats:
     every call's iterations in order."""
     if not parts:
         raise ValueError("no training to sum")
-    sums = ("env_steps", "iterations", "wall_s", "sample_s", "learn_s", "learner_samples")
+    sums = ("env_steps", "iterations", "wall_s", "sample_s", "learn_s")
+    sums += ("learner_samples", "gradient_steps")
     return dataclasses.replace(
         parts[-1],
-        **{k: sum(getattr(x, k) for x in parts) for k in (*sums, "gradient_steps")},
+        **{k: sum(getattr(x, k) for x in parts) for k in sums},
         iteration_log=tuple(row for x in parts for row in x.iteration_log),
     )

@@ -47,11 +47,16 @@ def population_dir(population: str | Path, seed: int | None = None) -> Path:
     for folder in (POPULATIONS_DIR / text, Path(text)):
         if (folder / MANIFEST).is_file():
             return folder
-    known = sorted(p.name for p in POPULATIONS_DIR.glob("*") if (p / MANIFEST).is_file())
+    known = names()
     raise PopulationError(
         f"no shipped population {text!r}: give one of {', '.join(known) or '(none built)'} "
         f"or a folder with a {MANIFEST} (build one with python -m hola_ray.populations build)"
     )
+
+
+def names() -> list[str]:
+    """The populations shipped under pools/populations/, by name."""
+    return sorted(p.name for p in POPULATIONS_DIR.glob("*") if (p / MANIFEST).is_file())
 
 
 def package(

@@ -267,23 +267,28 @@ def test_spread_stays_bounded_while_training():
     assert len(actions) > 50 and np.all(np.abs(actions) < 1)
 
 
+def seated_modules(oracle, timesteps: int) -> list[dict[str, str]]:
+    """Each episode the remote env runners sample (`timesteps` each): agent → module."""
+
+    def modules(runner):
+        return [
+            {aid: ep.module_for(aid) for aid in ep.agent_ids}
+            for ep in runner.sample(num_timesteps=timesteps, force_reset=True)
+        ]
+
+    seen = oracle.algo.env_runner_group.foreach_env_runner(modules, local_env_runner=False)
+    return [m for runner in seen for m in runner]
+
+
 def test_self_play_seats_the_learner_in_every_slot():
     config = RunConfig.from_dict(CONFIG.to_dict() | {"method": "sp"})
     oracle = make_oracle(config)
     try:
         assert oracle.modules == [LEARNER] and oracle.members == []
-
-        def modules(runner):
-            return [
-                {aid: ep.module_for(aid) for aid in ep.agent_ids}
-                for ep in runner.sample(num_timesteps=300, force_reset=True)
-            ]
-
-        seen = oracle.algo.env_runner_group.foreach_env_runner(modules, local_env_runner=False)
+        episodes = seated_modules(oracle, 300)
         stats = oracle.train(400, progress=False)
     finally:
         oracle.stop()
-    episodes = [m for runner in seen for m in runner]
     assert len(episodes) >= 4
     for mapping in episodes:
         assert mapping == {f"pursuer_{i}": LEARNER for i in range(3)}
@@ -299,18 +304,10 @@ def test_mep_in_self_play_seats_one_member_in_every_slot_of_an_episode():
     seating = Seating(mep_members=3, mep_alpha=0.05, mep_self_play=True)
     oracle = Oracle(CONFIG.env, CONFIG.oracle, seating, seed=0)
     try:
-
-        def modules(runner):
-            return [
-                {aid: ep.module_for(aid) for aid in ep.agent_ids}
-                for ep in runner.sample(num_timesteps=600, force_reset=True)
-            ]
-
-        seen = oracle.algo.env_runner_group.foreach_env_runner(modules, local_env_runner=False)
+        episodes = seated_modules(oracle, 600)
         stats = oracle.train(400, progress=False)
     finally:
         oracle.stop()
-    episodes = [m for runner in seen for m in runner]
     assert len(episodes) >= 8
     teams = [set(mapping.values()) for mapping in episodes]
     assert all(len(mapping) == 3 for mapping in episodes)
