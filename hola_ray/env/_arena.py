@@ -47,7 +47,8 @@ F_MATE_PENALTY = 31
 F_MATE_REACH = 32
 F_APPROACH_OWN = 33
 F_RESPONSE = 34
-N_FLOAT_PARAMS = 35
+F_SHARED = 35
+N_FLOAT_PARAMS = 36
 
 # ---- packed integer parameters ------------------------------------------------------
 I_HORIZON = 0
@@ -126,6 +127,7 @@ def pack_params(config: PursuitConfig) -> Params:
     fp[F_MATE_PENALTY] = reward.teammate_penalty
     fp[F_MATE_REACH] = reward.teammate_distance
     fp[F_APPROACH_OWN] = float(reward.approach == "own_move")
+    fp[F_SHARED] = float(reward.shared)
     fp[F_E_SENS] = ev.sensitivity_range
     fp[F_E_PANIC] = ev.panic_threshold
     fp[F_E_WANDER_CLEAR] = ev.wander_clearance

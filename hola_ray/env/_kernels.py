@@ -34,6 +34,7 @@ from hola_ray.env._arena import (
     F_PERCEPTION,
     F_RESPONSE,
     F_SAFE,
+    F_SHARED,
     F_SPAWN_SEP,
     F_UNOBSERVED,
     F_V_E,
@@ -319,6 +320,20 @@ def _collisions(b, p, s, reward, disabled):
                 pactive[b, i] = False
 
 
+@njit(cache=True, inline="always")
+def _share(b, s, reward, disabled):
+    """The common reward (`RewardConfig.shared`): every pursuer active at the start of the
+    step (those disabled by it included) receives the team's reward for the step, the sum
+    of every pursuer's own terms, divided by n_p."""
+    n_p = s.ppos.shape[1]
+    team = 0.0
+    for i in range(n_p):
+        team += reward[b, i]
+    for i in range(n_p):
+        if s.pactive[b, i] or disabled[b, i]:
+            reward[b, i] = team / n_p
+
+
 @njit(cache=True)
 def step_episode(b, actions, placed, p, s, out):
     """Advance episode b by one step with pursuer actions [n_p] in [0, 1] (already clipped);
@@ -355,6 +370,8 @@ def step_episode(b, actions, placed, p, s, out):
         _approach(b, p, s, reward, dist_prev)
     _captures(b, p, s, reward)
     _collisions(b, p, s, reward, disabled)
+    if fp[F_SHARED] > 0.0:
+        _share(b, s, reward, disabled)
 
     for i in range(n_p):
         s.ep_return[b, i] += reward[b, i]

@@ -139,6 +139,12 @@ class RewardConfig:
     """subtracted each step, per active teammate nearer than teammate_distance"""
     teammate_distance: float = 0.3
     """reach of teammate_penalty, metres"""
+    shared: bool = False
+    """the paper's common reward (§III): every pursuer active at the start of a step (one
+    that the step disables included; a disabled pursuer's agent has terminated) receives the
+    team's reward for the step, the mean over the n_p pursuers of the terms above (their sum
+    / n_p: the scale of the per-pursuer reward, so the same PPO settings apply); False:
+    each pursuer its own terms (SPEC §1)"""
 
     def __post_init__(self) -> None:
         for name in ("capture", "collision", "obstacle_penalty", "teammate_penalty"):
@@ -149,6 +155,7 @@ class RewardConfig:
                 "a finite number >= 0",
                 value,
             )
+        require(isinstance(self.shared, bool), "reward.shared", "true or false", self.shared)
         require(
             self.approach in APPROACH_MODES,
             "reward.approach",

@@ -84,6 +84,11 @@ class PretrainConfig:
     """a shipped population (pools/populations/<name>, or a folder with its manifest) taken
     as generation 0 instead of pre-training; `{seed}` in the name is the run's seed
     (`hola_ray.population.shipped`); none: pre-train"""
+    learner_start: str = "random"
+    """the learner's weights at generation 1: random (a fresh network), or member: a copy of
+    the generation-0 member the population prefers most (the highest η, preference
+    centrality; the lowest node on a tie), as the paper's Oracle maps a strategy j to
+    BR(j, G_j) and G_0's most preferred member is the natural j at generation 1"""
 
     def validate(self) -> None:
         positive_int("pretrain", self, "env_steps", maximum=10**11)
@@ -104,6 +109,12 @@ class PretrainConfig:
             "none or a shipped population's name or folder",
             self.population,
         )
+        require(
+            self.learner_start in LEARNER_STARTS,
+            "pretrain.learner_start",
+            " or ".join(LEARNER_STARTS),
+            self.learner_start,
+        )
 
     @property
     def shipped(self) -> bool:
@@ -115,6 +126,9 @@ class PretrainConfig:
         """Whether pre-training stops at competence (else after `env_steps`)."""
         return self.until_success > 0
 
+
+LEARNER_STARTS = ("random", "member")
+"""`pretrain.learner_start`: the learner's weights at generation 1"""
 
 PRETRAIN_SCHEMES = ("self-play", "mixed")
 """`pretrain.scheme`: how MEP's members share the episodes"""
@@ -210,6 +224,12 @@ class RunConfig:
             "pretrain.population",
             f"none for method {self.method} (it has no population)",
             self.pretrain.population,
+        )
+        require(
+            self.pretrain.learner_start == "random" or self.strategy.population_kind is not None,
+            "pretrain.learner_start",
+            f"random for method {self.method} (it has no population to start from)",
+            self.pretrain.learner_start,
         )
 
     def __getattr__(self, name: str) -> Any:

@@ -73,6 +73,7 @@ class Trainer:
         self.pool = MemberPool(self.config.env.to_dict(), run_name=self.name)
         self._validators: list | None = None  # the validation teammates, loaded once
         self._member_teams: dict[int, dict[str, float]] = {}  # node → its self-play figures
+        self.start_node = -1  # the member the learner started from (learner_start: member)
 
     # ---- entry --------------------------------------------------------------------------
     def fit(self) -> list[dict[str, Any]]:
@@ -125,6 +126,8 @@ class Trainer:
             if last < self.config.generations:
                 oracle = make_oracle(c)
                 learner = self.run.load_learner_state(last)
+                if learner is None and last == 0 and c.pretrain.learner_start == "member":
+                    learner = self._starting_member()
                 if learner is not None:
                     oracle.set_trained_weights({LEARNER: learner})
                 for g in range(last + 1, self.config.generations + 1):
@@ -178,6 +181,18 @@ class Trainer:
             f"gen 0: the shipped population {donor.root.name} ({size} members, built at "
             f"commit {str(manifest.get('commit'))[:8]}, seed {manifest.get('seed')})"
         )
+
+    def _starting_member(self) -> dict[str, Any]:
+        """`pretrain.learner_start: member`: the RLlib state of generation 0's member with
+        the highest η (the lowest node on a tie), which the learner starts from."""
+        members = ray.get(self.coord.view.remote())["members"]
+        best = max(members, key=lambda m: (m["eta"] or 0.0, -m["node"]))
+        self._say(
+            f"gen 1: the learner starts from member {best['node']} (η {best['eta'] or 0:.3f}, "
+            f"the highest of {len(members)})"
+        )
+        self.start_node = best["node"]
+        return ray.get(self.coord.member_states.remote([best["node"]]))[best["node"]]
 
     def _pretrain(self) -> dict[str, Any]:
         c = self.config
@@ -255,6 +270,7 @@ class Trainer:
             "oracle_sample_s": round(stats.sample_s, 2),
             "oracle_learn_s": round(stats.learn_s, 2),
             "oracle_learner_return": stats.module_return.get(LEARNER, float("nan")),
+            **({"learner_start_node": self.start_node} if g == 1 and self.start_node >= 0 else {}),
             **{k: round(v, 4) for k, v in stats.spread.items()},
             **judged,
         }

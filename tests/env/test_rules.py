@@ -184,6 +184,30 @@ def test_approach_reward_is_the_distance_gained(config, mode):
         np.testing.assert_allclose(result.reward, expected * active, atol=1e-9)
 
 
+def test_the_common_reward_gives_every_live_pursuer_the_teams_mean(config):
+    """`reward.shared`: the same episodes as with each pursuer's own terms (the reward does
+    not steer the dynamics), and every pursuer active at the start of a step, one the step
+    disables included, receives the mean of the pursuers' own rewards; the others 0."""
+    reward = dataclasses.replace(config.reward, obstacle_penalty=0.5, teammate_penalty=0.5)
+    own = BatchedPursuit(dataclasses.replace(config, reward=reward), 8)
+    shared_reward = dataclasses.replace(reward, shared=True)
+    shared = BatchedPursuit(dataclasses.replace(config, reward=shared_reward), 8)
+    seeds = list(range(30, 38))
+    own.reset(seeds=seeds)
+    shared.reset(seeds=seeds)
+    rng = np.random.default_rng(1)
+    crashed_mid_episode = 0
+    for _ in range(300):
+        active = own.pursuer_active.copy() & ~own.done[:, None]
+        actions = rng.random((8, 3))
+        mine, ours = own.step(actions), shared.step(actions)
+        np.testing.assert_array_equal(own.pursuer_pos, shared.pursuer_pos)
+        team = mine.reward.sum(axis=1, keepdims=True) / 3
+        np.testing.assert_allclose(ours.reward, np.where(active, team, 0.0), atol=1e-12)
+        crashed_mid_episode += int((mine.disabled & ~own.done[:, None]).any())
+    assert crashed_mid_episode > 0  # the disabled-this-step rule was exercised
+
+
 def test_reset_options_validate(config):
     env = BatchedPursuit(config, 1)
     with pytest.raises(ValueError, match="inside the arena"):

@@ -255,12 +255,35 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
         assert entry["team_episodes"] == 4 and 0 <= entry["team_success"] <= 1
     assert "generations/gen_0000/edges.json" in manifest["generation_files"]
 
-    # adopted, by name with the run's seed, and trained on
-    run = smoke | {"generations": 1, "pretrain": {"population": "tiny-s{seed}"}}
+    # adopted, by name with the run's seed, and trained on from its most preferred member
+    from hola_ray.oracle import LEARNER, Oracle
+
+    started: list[dict] = []
+    original = Oracle.set_trained_weights
+
+    def recorded(self, weights):
+        started.append(dict(weights))
+        return original(self, weights)
+
+    monkeypatch.setattr(Oracle, "set_trained_weights", recorded)
+    run = smoke | {
+        "generations": 1,
+        "pretrain": {"population": "tiny-s{seed}", "learner_start": "member"},
+    }
     said = train(run, tmp_path / "run", capsys)
     assert "gen 0: the shipped population tiny-s0 (3 members" in said
     r = RunDir(tmp_path / "run")
-    assert r.completed() == [0, 1] and r.metrics_rows()[0]["adopted_from"] == "tiny-s0"
+    rows = r.metrics_rows()
+    assert r.completed() == [0, 1] and rows[0]["adopted_from"] == "tiny-s0"
+    eta = {int(k): v for k, v in r.read_json(0, "eta.json").items()}
+    favourite = max(sorted(eta), key=lambda v: eta[v])
+    assert f"the learner starts from member {favourite} " in said
+    assert rows[1]["learner_start_node"] == favourite
+    [weights] = started
+    member = r.load_member_state(favourite)
+    assert set(weights[LEARNER]) == set(member)
+    for name, value in member.items():
+        assert (weights[LEARNER][name] == value).all(), name
     for entry in manifest["members"].values():
         assert (r.root / entry["file"]).read_bytes() == (folder / entry["file"]).read_bytes()
 

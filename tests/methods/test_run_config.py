@@ -44,6 +44,11 @@ def test_yaml_round_trip(name):
         ({"grapher": {"episodes": 3}}, r"unknown key\(s\) grapher.episodes"),
         ({"generations": -1}, r"generations must be an integer >= 0"),
         ({"pretrain": {"alpha": 2.0}}, r"pretrain.alpha must be in \[0, 1\]"),
+        ({"pretrain": {"learner_start": "best"}}, r"learner_start must be random or member"),
+        (
+            {"method": "sp", "pretrain": {"learner_start": "member"}},
+            r"learner_start must be random for method sp \(it has no population",
+        ),
         # absurd sizes: typos, not runs
         ({"oracle": {"hidden": [10**9]}}, r"oracle.hidden must be a list of at most 16"),
         ({"oracle": {"envs_per_runner": 10**8}}, r"envs_per_runner must be an integer in \[1,"),
