@@ -136,7 +136,9 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
     bonus of weight `alpha` (0: none), each in self-play (`scheme` "self-play": one member
     in every seat of an episode) or drawn per seat into mixed teams ("mixed"), for
     `pretrain.env_steps`; with `pretrain.until_success`, judged every `check_every` env
-    steps as teams of their own copies and stopped once every member is competent."""
+    steps as teams of their own copies and stopped once every member is competent. After
+    each check the members are saved in the run directory (`RunDir.save_pretrain`): a
+    stopped build resumes from its last check, with a fresh optimizer and sampler."""
     c = trainer.config
     p, n = c.pretrain, c.population.initial_size
     seating = Seating(mep_members=n, mep_alpha=alpha, mep_self_play=scheme == "self-play")
@@ -144,6 +146,14 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
     parts: list[TrainStats] = []
     metrics: dict[str, float] = {}
     done, judge_s, stop = 0, 0.0, ""
+    saved = trainer.run.load_pretrain() if p.until else None
+    if saved is not None:  # a stopped build: on from its last check (a fresh optimizer)
+        states, progress = saved
+        mep.set_trained_weights(states)
+        done, judge_s = int(progress["env_steps"]), float(progress["judge_s"])
+        metrics["pretrain_resumed_at"] = done
+        trainer._say(f"pre-train: resumed after {done:,} env steps ({trainer.run.pretrain})")
+    resumed = done
     try:
         while done < p.env_steps:
             budget = min(p.check_every, p.env_steps - done) if p.until else p.env_steps
@@ -158,7 +168,7 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
                 f["success"] >= p.until_success and f["collision"] <= p.until_collision
                 for f in figures
             )
-            metrics = {
+            metrics |= {
                 "pretrain_members_success_min": round(min(f["success"] for f in figures), 4),
                 "pretrain_members_collision_max": round(max(f["collision"] for f in figures), 4),
             }
@@ -171,6 +181,11 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
             if competent:
                 stop = f"competent after {done:,} env steps"
                 break
+            if done < p.env_steps:  # a stopped build resumes here (a check's worth at most lost)
+                trainer.run.save_pretrain(
+                    mep.weights(mep.members),
+                    {"members": mep.members, "env_steps": done, "judge_s": judge_s},
+                )
         else:
             stop = f"{p.env_steps:,} env steps" + (", not all competent" if p.until else "")
         states = mep.weights(mep.members)
@@ -182,7 +197,10 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
             "pretrain_judge_s": round(judge_s, 2),
         }
     said = f"pre-trained {n} members {how} ({scheme}; {stop})"
-    return Built([states[m] for m in mep.members], summed(parts), said, metrics)
+    stats = summed(parts)
+    if resumed:  # the env steps before the resume count too
+        stats = dataclasses.replace(stats, env_steps=stats.env_steps + resumed)
+    return Built([states[m] for m in mep.members], stats, said, metrics)
 
 
 def members_as_copies(config: RunConfig, oracle: Oracle) -> list[dict[str, float]]:

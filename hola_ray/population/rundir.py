@@ -39,6 +39,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from hola_ray.policies.registry import GENERATION_EXPORT, GENERATION_STATE
@@ -70,6 +71,7 @@ class RunDir:
         self.best = self.root / "best.pt"
         self.best_info = self.root / "best.json"
         self.population = self.root / "population"
+        self.pretrain = self.root / "pretrain"
 
     def create(self, config_yaml: str) -> None:
         self.members.mkdir(parents=True, exist_ok=True)
@@ -259,6 +261,30 @@ class RunDir:
         if not path.exists():
             return None
         return torch.load(path, map_location="cpu", weights_only=False)
+
+    # ---- pre-training checkpoints ---------------------------------------------------------
+    def save_pretrain(self, states: Mapping[str, Mapping[str, Any]], progress: Mapping) -> None:
+        """`pretrain/`: the pre-training members' RLlib states after a check (plain .npz
+        arrays, nothing pickled) and `progress.json` (env steps done, the checks so far),
+        written last: a build stopped mid-way resumes from its last check."""
+        self.pretrain.mkdir(parents=True, exist_ok=True)
+        for mid, state in states.items():
+            tmp = self.pretrain / f".tmp_{mid}.npz"
+            np.savez(tmp, **{k: np.asarray(v) for k, v in state.items()})
+            os.replace(tmp, self.pretrain / f"{mid}.npz")
+        _atomic_write_text(self.pretrain / "progress.json", json.dumps(dict(progress), indent=1))
+
+    def load_pretrain(self) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, Any]] | None:
+        """The last pre-training checkpoint (`save_pretrain`), or None."""
+        path = self.pretrain / "progress.json"
+        if not path.is_file():
+            return None
+        progress = json.loads(path.read_text())
+        states = {}
+        for mid in progress["members"]:
+            with np.load(self.pretrain / f"{mid}.npz", allow_pickle=False) as data:
+                states[mid] = {k: data[k] for k in data.files}
+        return states, progress
 
     def clean_partial(self) -> None:
         """Remove half-written generation folders left by a killed driver."""

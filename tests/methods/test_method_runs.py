@@ -184,6 +184,34 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     assert row["pretrain_competent"] == 1 and 2000 <= row["pretrain_env_steps"] < 3000
     assert row["pretrain_members_success_min"] == 0.9
 
+    # stopped during its second check: the build resumes from the members saved at the first
+    judged.clear()
+
+    def stopped(config, oracle):
+        judged.append(real(config, oracle))
+        if len(judged) == 2:
+            raise KeyboardInterrupt
+        return judged[-1]
+
+    monkeypatch.setattr(base, "members_as_copies", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        train(smoke | {"generations": 0, "pretrain": never}, tmp_path / "stopped", capsys)
+    run = RunDir(tmp_path / "stopped")
+    states, progress = run.load_pretrain()
+    assert run.completed() == [] and 1000 <= progress["env_steps"] < 2000
+    seated: list[dict] = []
+    monkeypatch.setattr(base, "members_as_copies", real)
+    monkeypatch.setattr(base.Oracle, "set_trained_weights", lambda self, w: seated.append(dict(w)))
+    said = train(smoke | {"generations": 0, "pretrain": never}, tmp_path / "stopped", capsys)
+    assert f"pre-train: resumed after {progress['env_steps']:,} env steps" in said
+    assert said.count("members as copies") == 1  # only the check after the resume
+    assert [sorted(w) for w in seated] == [sorted(states)]
+    for mid, state in states.items():
+        assert all((seated[0][mid][k] == v).all() for k, v in state.items())
+    (row,) = run.metrics_rows()
+    assert row["pretrain_resumed_at"] == progress["env_steps"]
+    assert row["pretrain_env_steps"] >= 2000
+
 
 def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(
     tmp_path, capsys, mep_zero
