@@ -16,6 +16,7 @@ whose learner scored best in its judging).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -31,8 +32,10 @@ from hola_ray.evaluation.metrics import TEAM, VALIDATED
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import mean_and_se
 from hola_ray.evaluation.teams import play
+from hola_ray.methods.base import Built
 from hola_ray.methods.config import RunConfig
 from hola_ray.oracle import LEARNER, Oracle
+from hola_ray.oracle.trainer import TrainStats
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.population import shipped
 from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name, run_id
@@ -74,6 +77,7 @@ class Trainer:
         self._validators: list | None = None  # the validation teammates, loaded once
         self._member_teams: dict[int, dict[str, float]] = {}  # node → its self-play figures
         self.start_node = -1  # the member the learner started from (learner_start: member)
+        self._shipped: tuple | None = None  # a shipped population whose G_0 is weighed here
 
     # ---- entry --------------------------------------------------------------------------
     def fit(self) -> list[dict[str, Any]]:
@@ -167,7 +171,11 @@ class Trainer:
 
     def _adopt_shipped(self) -> None:
         """Generation 0 is a shipped population (`pretrain.population`), verified, fitting
-        the run's layout and apart from every pool (`hola_ray.population.shipped`)."""
+        the run's layout and apart from every pool (`hola_ray.population.shipped`). Built in
+        this run's scenario (reward included), its generation 0 is copied in whole; built
+        in another (say SPEC's approach term, where the run has own_move), its members are
+        taken and G_0 is weighed again under the run's own (`_pretrain`): a hyperedge's
+        weight is a team return, and η compares the learner's hyperedges with G_0's."""
         c = self.config
         kind, size = c.strategy.population_kind, c.strategy.population_size(c)
         donor, manifest = shipped.load(c.pretrain.population, c.seed, c.layout(), kind)
@@ -176,11 +184,29 @@ class Trainer:
                 f"population {donor.root.name} holds {len(manifest['members'])} members; "
                 f"method {c.method} with this config builds {size}"
             )
-        self.run.adopt_generation_zero(donor)
-        self._say(
-            f"gen 0: the shipped population {donor.root.name} ({size} members, built at "
-            f"commit {str(manifest.get('commit'))[:8]}, seed {manifest.get('seed')})"
+        built_in = RunConfig.from_dict(manifest["config_values"]).env
+        said = (
+            f"the shipped population {donor.root.name} ({size} members, built at commit "
+            f"{str(manifest.get('commit'))[:8]}, seed {manifest.get('seed')})"
         )
+        if built_in != c.env:
+            self._shipped = (donor, manifest, said, _differences(built_in, c.env))
+            return
+        self.run.adopt_generation_zero(donor)
+        self._say(f"gen 0: {said}")
+
+    def _shipped_members(self) -> Built:
+        """The members of a shipped population built in another scenario: their states,
+        taken as this run's generation 0 (its G_0 is weighed here)."""
+        donor, manifest, said, differ = self._shipped
+        nodes = sorted(e["node"] for e in manifest["members"].values())
+        stats = TrainStats(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
+        note = f"{said}; G_0 weighed under this run's scenario ({differ} differ)"
+        metrics = {"adopted_from": donor.root.name, "adopted_pretrain_env_steps": 0}
+        built = manifest.get("built", {})
+        if "pretrain_env_steps" in built:
+            metrics["adopted_pretrain_env_steps"] = built["pretrain_env_steps"]
+        return Built([donor.load_member_state(v) for v in nodes], stats, note, metrics)
 
     def _starting_member(self) -> dict[str, Any]:
         """`pretrain.learner_start: member`: the RLlib state of generation 0's member with
@@ -198,7 +224,7 @@ class Trainer:
         c = self.config
         self.coord.set_phase.remote("pretrain")
         begun = start = time.perf_counter()
-        built = c.strategy.build_population(self)
+        built = self._shipped_members() if self._shipped else c.strategy.build_population(self)
         states_list, stats = built.states, built.stats
         exports = [c.export(s) for s in states_list]
         pretrain_s = time.perf_counter() - start
@@ -497,6 +523,18 @@ KEY_FILE = "generation_zero_key.json"
 VALIDATION_SEED = 90_001
 """Validation episodes' seeds: VALIDATION_SEED + the run's seed, apart from the zero-shot
 evaluation's (0, 1, 2 …) and Table II's"""
+
+
+def _differences(a: Any, b: Any, prefix: str = "env") -> str:
+    """The fields in which two (nested) config dataclasses differ, as dotted names."""
+    out = []
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if dataclasses.is_dataclass(x) and x != y:
+            out.append(_differences(x, y, f"{prefix}.{f.name}"))
+        elif x != y:
+            out.append(f"{prefix}.{f.name}")
+    return ", ".join(out)
 
 
 def _team_figures(result) -> dict[str, float]:

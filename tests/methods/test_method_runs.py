@@ -312,6 +312,23 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
     assert set(weights[LEARNER]) == set(member)
     for name, value in member.items():
         assert (weights[LEARNER][name] == value).all(), name
+
+    # a run with another reward takes the members and weighs G_0 under its own reward
+    env = smoke["env"] | {"reward": smoke["env"].get("reward", {}) | {"collision": 30.0}}
+    other = smoke | {"env": env, "pretrain": {"population": "tiny-s0"}, "generations": 0}
+    said = train(other, tmp_path / "reweighed", capsys)
+    assert "G_0 weighed under this run's scenario (env.reward.collision differ)" in said
+    again = RunDir(tmp_path / "reweighed")
+    assert again.metrics_rows()[0]["adopted_from"] == "tiny-s0"
+    for entry in manifest["members"].values():  # the same members, weighed again
+        copied, shipped_export = (
+            x.load_member_export(entry["node"]) for x in (again, shipped.RunDir(folder))
+        )
+        for a, b in zip(copied["weights"], shipped_export["weights"], strict=True):
+            assert (a == b).all()
+    weights_then = {tuple(e["nodes"]): e["team_return"] for e in r.read_json(0, "edges.json")}
+    weights_now = {tuple(e["nodes"]): e["team_return"] for e in again.read_json(0, "edges.json")}
+    assert set(weights_now) == set(weights_then) and weights_now != weights_then
     for entry in manifest["members"].values():
         assert (r.root / entry["file"]).read_bytes() == (folder / entry["file"]).read_bytes()
 
