@@ -45,7 +45,12 @@ DEFAULT: dict[str, Any] = {
         "envs_per_runner": 64,
         "overlap": True,
     },
-    "pretrain": {"env_steps": 100_000, "alpha": 0.05},
+    "pretrain": {
+        "env_steps": 100_000,
+        "alpha": 0.05,
+        "population": "mep-3v1-s0",
+        "learner_start": "member",
+    },
     "population": {"max_size": 6, "initial_size": 4, "top_m": 3},
     "grapher": {"episodes_per_edge": 64, "workers": 2},
 }
