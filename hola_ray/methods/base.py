@@ -115,6 +115,13 @@ class Method:
         c = trainer.config
         return pretrain_population(trainer, c.pretrain.alpha, "with MEP", c.pretrain.scheme)
 
+    def generation_zero(self, trainer: Trainer) -> Built:
+        """What the trainer calls for generation 0: the members of a shipped population
+        built in another scenario (`shipped_members`), else `build_population`."""
+        if trainer.foreign_population is not None:
+            return shipped_members(*trainer.foreign_population)
+        return self.build_population(trainer)
+
     def before_training(self, trainer: Trainer, g: int, oracle: Oracle) -> int | None:
         """Called before generation g's Oracle trains; returns the population slot of the
         member the learner was seated from (PBT), else None."""
@@ -129,6 +136,21 @@ class Method:
         if not self.joins:
             return f"population fixed ({self.name}: a best response; η rank {decision.rank})"
         return f"rejected (rank {decision.rank} > top {config.population.top_m})"
+
+
+def shipped_members(donor: Any, manifest: dict[str, Any], said: str, differ: str) -> Built:
+    """The members of a shipped population built in another scenario (`differ`: the fields,
+    as dotted names), taken as a run's generation 0; the run weighs its G_0 itself."""
+    from hola_ray.oracle.trainer import TrainStats
+
+    nodes = sorted(e["node"] for e in manifest["members"].values())
+    stats = TrainStats(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
+    note = f"{said}; G_0 weighed under this run's scenario ({differ} differ)"
+    metrics = {"adopted_from": donor.root.name}
+    built = manifest.get("built", {})
+    if "pretrain_env_steps" in built:
+        metrics["adopted_pretrain_env_steps"] = built["pretrain_env_steps"]
+    return Built([donor.load_member_state(v) for v in nodes], stats, note, metrics)
 
 
 def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -> Built:

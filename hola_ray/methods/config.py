@@ -83,7 +83,8 @@ class PretrainConfig:
     population: str = "none"
     """a shipped population (pools/populations/<name>, or a folder with its manifest) taken
     as generation 0 instead of pre-training; `{seed}` in the name is the run's seed
-    (`hola_ray.population.shipped`); none: pre-train"""
+    (`hola_ray.population.shipped`); none: pre-train. A method without a population
+    (self-play) ignores it and `learner_start`, so `--set method=sp` on the default works"""
     learner_start: str = "random"
     """the learner's weights at generation 1: random (a fresh network), or member: a copy of
     the generation-0 member the population prefers most (the highest η, preference
@@ -219,18 +220,6 @@ class RunConfig:
             section.validate()
         self.validation.validate()
         self.strategy.validate(self)
-        require(
-            not self.pretrain.shipped or self.strategy.population_kind is not None,
-            "pretrain.population",
-            f"none for method {self.method} (it has no population)",
-            self.pretrain.population,
-        )
-        require(
-            self.pretrain.learner_start == "random" or self.strategy.population_kind is not None,
-            "pretrain.learner_start",
-            f"random for method {self.method} (it has no population to start from)",
-            self.pretrain.learner_start,
-        )
 
     def __getattr__(self, name: str) -> Any:
         """A method's own section: `config.fcp`, `config.pbt`."""

@@ -32,10 +32,8 @@ from hola_ray.evaluation.metrics import TEAM, VALIDATED
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import mean_and_se
 from hola_ray.evaluation.teams import play
-from hola_ray.methods.base import Built
 from hola_ray.methods.config import RunConfig
 from hola_ray.oracle import LEARNER, Oracle
-from hola_ray.oracle.trainer import TrainStats
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.population import shipped
 from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name, run_id
@@ -77,7 +75,9 @@ class Trainer:
         self._validators: list | None = None  # the validation teammates, loaded once
         self._member_teams: dict[int, dict[str, float]] = {}  # node → its self-play figures
         self.start_node = -1  # the member the learner started from (learner_start: member)
-        self._shipped: tuple | None = None  # a shipped population whose G_0 is weighed here
+        self.foreign_population: tuple | None = None
+        """a shipped population built in another scenario, whose G_0 this run weighs:
+        (its folder, manifest, what to say, the fields that differ)"""
 
     # ---- entry --------------------------------------------------------------------------
     def fit(self) -> list[dict[str, Any]]:
@@ -130,7 +130,7 @@ class Trainer:
             if last < self.config.generations:
                 oracle = make_oracle(c)
                 learner = self.run.load_learner_state(last)
-                if learner is None and last == 0 and c.pretrain.learner_start == "member":
+                if learner is None and last == 0 and self._starts_from_member():
                     learner = self._starting_member()
                 if learner is not None:
                     oracle.set_trained_weights({LEARNER: learner})
@@ -152,7 +152,7 @@ class Trainer:
         c = self.config
         if self.run.last_completed() is not None:
             return
-        if c.pretrain.shipped:
+        if c.pretrain.shipped and c.strategy.population_kind is not None:
             self._adopt_shipped()
             return
         key = c.generation_zero_key()
@@ -190,23 +190,14 @@ class Trainer:
             f"{str(manifest.get('commit'))[:8]}, seed {manifest.get('seed')})"
         )
         if built_in != c.env:
-            self._shipped = (donor, manifest, said, _differences(built_in, c.env))
+            self.foreign_population = (donor, manifest, said, _differences(built_in, c.env))
             return
         self.run.adopt_generation_zero(donor)
         self._say(f"gen 0: {said}")
 
-    def _shipped_members(self) -> Built:
-        """The members of a shipped population built in another scenario: their states,
-        taken as this run's generation 0 (its G_0 is weighed here)."""
-        donor, manifest, said, differ = self._shipped
-        nodes = sorted(e["node"] for e in manifest["members"].values())
-        stats = TrainStats(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
-        note = f"{said}; G_0 weighed under this run's scenario ({differ} differ)"
-        metrics = {"adopted_from": donor.root.name, "adopted_pretrain_env_steps": 0}
-        built = manifest.get("built", {})
-        if "pretrain_env_steps" in built:
-            metrics["adopted_pretrain_env_steps"] = built["pretrain_env_steps"]
-        return Built([donor.load_member_state(v) for v in nodes], stats, note, metrics)
+    def _starts_from_member(self) -> bool:
+        c = self.config
+        return c.pretrain.learner_start == "member" and c.strategy.population_kind is not None
 
     def _starting_member(self) -> dict[str, Any]:
         """`pretrain.learner_start: member`: the RLlib state of generation 0's member with
@@ -224,7 +215,7 @@ class Trainer:
         c = self.config
         self.coord.set_phase.remote("pretrain")
         begun = start = time.perf_counter()
-        built = self._shipped_members() if self._shipped else c.strategy.build_population(self)
+        built = c.strategy.generation_zero(self)
         states_list, stats = built.states, built.stats
         exports = [c.export(s) for s in states_list]
         pretrain_s = time.perf_counter() - start
