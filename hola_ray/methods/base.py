@@ -163,22 +163,39 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
     stopped build resumes from its last check, with a fresh optimizer and sampler."""
     c = trainer.config
     p, n = c.pretrain, c.population.initial_size
-    seating = Seating(mep_members=n, mep_alpha=alpha, mep_self_play=scheme == "self-play")
-    mep = Oracle(c.env, c.oracle, seating, c.seed)
+
+    def oracle(weight: float) -> Oracle:
+        mode = scheme == "self-play"
+        seating = Seating(mep_members=n, mep_alpha=weight, mep_self_play=mode)
+        return Oracle(c.env, c.oracle, seating, c.seed)
+
+    def bonus_ends(done: int) -> bool:  # `alpha_until`: α 0 from here on
+        return alpha > 0 and 0 < p.alpha_until <= done
+
     parts: list[TrainStats] = []
     metrics: dict[str, float] = {}
     done, judge_s, stop = 0, 0.0, ""
     saved = trainer.run.load_pretrain() if p.until else None
     if saved is not None:  # a stopped build: on from its last check (a fresh optimizer)
         states, progress = saved
-        mep.set_trained_weights(states)
         done, judge_s = int(progress["env_steps"]), float(progress["judge_s"])
+    mep = oracle(0.0 if bonus_ends(done) else alpha)
+    if saved is not None:
+        mep.set_trained_weights(states)
         metrics["pretrain_resumed_at"] = done
         trainer._say(f"pre-train: resumed after {done:,} env steps ({trainer.run.pretrain})")
     resumed = done
     try:
         while done < p.env_steps:
-            budget = min(p.check_every, p.env_steps - done) if p.until else p.env_steps
+            if bonus_ends(done) and mep.seating.mep_alpha > 0:
+                states = mep.weights(mep.members)
+                mep.stop()
+                mep = oracle(0.0)
+                mep.set_trained_weights(states)
+                trainer._say(f"pre-train: α 0 from {done:,} env steps on (pretrain.alpha_until)")
+            budget = min(p.check_every, p.env_steps - done) if p.until else p.env_steps - done
+            if bonus_ends(p.alpha_until) and done < p.alpha_until:
+                budget = min(budget, p.alpha_until - done)
             parts.append(mep.train(budget, desc="pre-train (MEP)", progress=trainer.progress))
             done += parts[-1].env_steps
             if not p.until:

@@ -66,6 +66,10 @@ class PretrainConfig:
     the most it may take"""
     alpha: float = 0.05
     """α: weight of the population mean policy's entropy bonus −log π̄(a|s), in [0, 1]"""
+    alpha_until: int = 0
+    """> 0: the population-entropy bonus applies for the first alpha_until env steps only;
+    after them the members train on with α 0 (the same weights, a fresh optimizer), to
+    narrow the spread the bonus keeps wide; 0: α throughout"""
     scheme: str = "self-play"
     """self-play: each member in self-play, its own copies in every seat of an episode (as
     MEP trains its population; the bonus's π̄ is over all members); mixed: the members
@@ -94,6 +98,13 @@ class PretrainConfig:
     def validate(self) -> None:
         positive_int("pretrain", self, "env_steps", maximum=10**11)
         finite_in("pretrain", self, "alpha", 0.0, 1.0, "in [0, 1]")
+        ok = isinstance(self.alpha_until, int) and not isinstance(self.alpha_until, bool)
+        require(
+            ok and 0 <= self.alpha_until <= 10**11,
+            "pretrain.alpha_until",
+            "an integer >= 0 (0: the bonus throughout)",
+            self.alpha_until,
+        )
         require(
             self.scheme in PRETRAIN_SCHEMES,
             "pretrain.scheme",

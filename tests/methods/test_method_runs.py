@@ -168,6 +168,20 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     assert row["pretrain_competent"] == 0 and row["pretrain_env_steps"] >= 2000
     assert 0 <= row["pretrain_members_success_min"] < 1.0
 
+    # pretrain.alpha_until: the bonus for the first 1,000 env steps, then α 0 on the weights
+    alphas: list[float] = []
+    real_oracle_init = base.Oracle.__init__
+
+    def seen(self, env, config, seating, seed):
+        alphas.append(seating.mep_alpha)
+        real_oracle_init(self, env, config, seating, seed)
+
+    monkeypatch.setattr(base.Oracle, "__init__", seen)
+    annealed = never | {"alpha": 0.05, "alpha_until": 1000}
+    said = train(smoke | {"generations": 0, "pretrain": annealed}, tmp_path / "anneal", capsys)
+    assert alphas == [0.05, 0.0] and "pre-train: α 0 from 1," in said
+    monkeypatch.setattr(base.Oracle, "__init__", real_oracle_init)
+
     judged = []
     real = base.members_as_copies
 

@@ -55,6 +55,7 @@ def test_a_method_without_a_population_ignores_the_defaults_shipped_one():
         ({"generations": -1}, r"generations must be an integer >= 0"),
         ({"pretrain": {"alpha": 2.0}}, r"pretrain.alpha must be in \[0, 1\]"),
         ({"pretrain": {"learner_start": "best"}}, r"learner_start must be random or member"),
+        ({"pretrain": {"alpha_until": -1}}, r"pretrain.alpha_until must be an integer >= 0"),
         # absurd sizes: typos, not runs
         ({"oracle": {"hidden": [10**9]}}, r"oracle.hidden must be a list of at most 16"),
         ({"oracle": {"envs_per_runner": 10**8}}, r"envs_per_runner must be an integer in \[1,"),
