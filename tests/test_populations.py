@@ -72,3 +72,16 @@ def test_a_changed_shipped_file_is_refused(tmp_path, name):
         f.write(b"\0")
     with pytest.raises(shipped.PopulationError, match="the file changed after the build"):
         shipped.verify(copy, manifest)
+
+
+def test_a_population_name_takes_the_runs_seed_and_its_methods_kind(tmp_path, monkeypatch):
+    """`{seed}` and `{kind}` in `pretrain.population`: one experiment seats each method of
+    each seed on its own kind of population (mep-3v1-s1 for hola, fcp-3v1-s1 for fcp)."""
+    monkeypatch.setattr(shipped, "POPULATIONS_DIR", tmp_path)
+    for name in ("mep-3v1-s1", "fcp-3v1-s1"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "manifest.json").write_text("{}")
+    assert shipped.population_dir("{kind}-3v1-s{seed}", 1, "fcp") == tmp_path / "fcp-3v1-s1"
+    assert shipped.population_dir("{kind}-3v1-s{seed}", 1, "mep") == tmp_path / "mep-3v1-s1"
+    with pytest.raises(shipped.PopulationError, match="no shipped population 'pbt-3v1-s1'"):
+        shipped.population_dir("{kind}-3v1-s{seed}", 1, "pbt")

@@ -86,9 +86,11 @@ class PretrainConfig:
     """environment steps between checks"""
     population: str = "none"
     """a shipped population (pools/populations/<name>, or a folder with its manifest) taken
-    as generation 0 instead of pre-training; `{seed}` in the name is the run's seed
-    (`hola_ray.population.shipped`); none: pre-train. A method without a population
-    (self-play) ignores it and `learner_start`, so `--set method=sp` on the default works"""
+    as generation 0 instead of pre-training; `{seed}` in the name is the run's seed and
+    `{kind}` the kind of population its method builds (`mep-3v1-s{seed}`,
+    `{kind}-3v1-s{seed}`; `hola_ray.population.shipped`); none: pre-train. A method
+    without a population (self-play) ignores it and `learner_start`, so `--set method=sp`
+    on the default works"""
     learner_start: str = "random"
     """the learner's weights at generation 1: random (a fresh network), or member: a copy of
     the generation-0 member the population prefers most (the highest η, preference

@@ -38,12 +38,18 @@ class PopulationError(RuntimeError):
     """A shipped population is missing, changed, or does not fit the run."""
 
 
-def population_dir(population: str | Path, seed: int | None = None) -> Path:
+def population_dir(
+    population: str | Path, seed: int | None = None, kind: str | None = None
+) -> Path:
     """A shipped population's folder: a name under pools/populations/ or a folder holding
-    a manifest; `{seed}` in the name is the run's seed (one population per seed)."""
+    a manifest; `{seed}` in the name is the run's seed (one population per seed) and
+    `{kind}` the kind its method builds (mep, fcp, pbt: one experiment seats each method on
+    its own kind of population)."""
     text = str(population)
     if seed is not None and "{seed}" in text:
         text = text.replace("{seed}", str(seed))
+    if kind is not None and "{kind}" in text:
+        text = text.replace("{kind}", kind)
     for folder in (POPULATIONS_DIR / text, Path(text)):
         if (folder / MANIFEST).is_file():
             return folder
@@ -177,7 +183,7 @@ def load(
 ) -> tuple[RunDir, dict[str, Any]]:
     """A verified shipped population that fits the run: its folder as a run directory to
     adopt generation 0 from, and its manifest."""
-    folder = population_dir(population, seed)
+    folder = population_dir(population, seed, kind)
     manifest = read(folder)
     if manifest.get("kind") != kind:
         raise PopulationError(
