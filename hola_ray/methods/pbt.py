@@ -17,6 +17,7 @@ import ray
 from hola_ray.env.checks import finite_in, require
 from hola_ray.hypergraph import centrality, rank_of
 from hola_ray.methods.base import Built, Method, Uniform, pretrain_population
+from hola_ray.methods.config import PRETRAIN_SCHEMES
 from hola_ray.oracle import LEARNER, Oracle
 from hola_ray.population.state import Decision, Population
 
@@ -36,6 +37,10 @@ class PBTConfig:
     perturb: tuple[float, ...] = (0.8, 1.2)
     """and multiplies that agent's lr and entropy coefficient by a factor drawn from these
     (explore)"""
+    start: str = "mixed"
+    """how the initial agents train (generation 0, no entropy bonus): mixed, jointly in
+    teams drawn from all of them (PBT's start); self-play, each in its own copies' team
+    (the shipped pbt populations: competent agents, as MEP's self-play scheme at α 0)"""
 
     def validate(self) -> None:
         finite_in("pbt", self, "quantile", 0.01, 0.5, "in [0.01, 0.5]")
@@ -43,6 +48,9 @@ class PBTConfig:
             isinstance(f, int | float) and 0 < f < 10 for f in self.perturb
         )
         require(ok, "pbt.perturb", "a non-empty list of factors in (0, 10)", self.perturb)
+        require(
+            self.start in PRETRAIN_SCHEMES, "pbt.start", " or ".join(PRETRAIN_SCHEMES), self.start
+        )
 
 
 @dataclass(frozen=True)
@@ -119,7 +127,9 @@ class PBT(Method):
         return ExploitExplore(config.pbt.quantile, config.pbt.perturb, o.lr, o.entropy_coef)
 
     def build_population(self, trainer: Trainer) -> Built:
-        return pretrain_population(trainer, 0.0, "jointly (PBT's start)", "mixed")
+        start = trainer.config.pbt.start
+        how = "jointly (PBT's start)" if start == "mixed" else "each in self-play (PBT's start)"
+        return pretrain_population(trainer, 0.0, how, start)
 
     def before_training(self, trainer: Trainer, g: int, oracle: Oracle) -> int:
         """Generation g trains agent (g − 1) mod K: its weights go into the learner, which
