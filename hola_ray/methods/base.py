@@ -81,6 +81,8 @@ class Method:
     population_kind: ClassVar[str | None] = "mep"
     """what builds its generation 0 (`build_population`): a shipped population of the same
     kind may replace it (`pretrain.population`); None: the method has no population"""
+    also_seats: ClassVar[tuple[str, ...]] = ()
+    """other kinds of shipped population it may take as generation 0"""
     section: ClassVar[tuple[str, type] | None] = None
     """the method's own run-config section (name, frozen dataclass with `validate()`), or
     None; `config.<name>` reads it"""

@@ -89,13 +89,15 @@ class PretrainConfig:
     as generation 0 instead of pre-training; `{seed}` in the name is the run's seed and
     `{kind}` the kind of population its method builds (`mep-3v1-s{seed}`,
     `{kind}-3v1-s{seed}`; `hola_ray.population.shipped`); none: pre-train. A method
-    without a population (self-play) ignores it and `learner_start`, so `--set method=sp`
-    on the default works"""
+    without a population (self-play) takes only its learner's start from it
+    (`learner_start: member`)"""
     learner_start: str = "random"
     """the learner's weights at generation 1: random (a fresh network), or member: a copy of
     the generation-0 member the population prefers most (the highest η, preference
     centrality; the lowest node on a tie), as the paper's Oracle maps a strategy j to
-    BR(j, G_j) and G_0's most preferred member is the natural j at generation 1"""
+    BR(j, G_j) and G_0's most preferred member is the natural j at generation 1; for
+    self-play, the most preferred member of the shipped `population` (FCP's: a self-play
+    checkpoint; with `population: none`, random)"""
 
     def validate(self) -> None:
         positive_int("pretrain", self, "env_steps", maximum=10**11)

@@ -68,6 +68,10 @@ class ExploitExplore:
     entropy_coef: float
 
     def setup(self, population: Population) -> None:
+        """Every agent at the run's lr and entropy coefficient, no scores yet; a population
+        that holds them already (a resumed run) keeps its own."""
+        if "agent_hyper" in population.extra:
+            return
         population.extra["agent_scores"] = {}
         population.extra["agent_hyper"] = {
             str(slot): {"lr": self.lr, "entropy_coef": self.entropy_coef}
@@ -121,6 +125,8 @@ class ExploitExplore:
 class PBT(Method):
     section = ("pbt", PBTConfig)
     population_kind: ClassVar[str | None] = "pbt"
+    also_seats: ClassVar[tuple[str, ...]] = ("mep",)
+    """MEP's members, trained with its entropy bonus, as the agents PBT starts from"""
 
     def rules(self, config: RunConfig) -> ExploitExplore:
         o = config.oracle

@@ -178,7 +178,8 @@ class Trainer:
         weight is a team return, and η compares the learner's hyperedges with G_0's."""
         c = self.config
         kind, size = c.strategy.population_kind, c.strategy.population_size(c)
-        donor, manifest = shipped.load(c.pretrain.population, c.seed, c.layout(), kind)
+        kinds = (kind, *c.strategy.also_seats)
+        donor, manifest = shipped.load(c.pretrain.population, c.seed, c.layout(), kinds)
         if len(manifest["members"]) != size:
             raise shipped.PopulationError(
                 f"population {donor.root.name} holds {len(manifest['members'])} members; "
@@ -197,11 +198,15 @@ class Trainer:
 
     def _starts_from_member(self) -> bool:
         c = self.config
-        return c.pretrain.learner_start == "member" and c.strategy.population_kind is not None
+        has_members = c.strategy.population_kind is not None or c.pretrain.shipped
+        return c.pretrain.learner_start == "member" and has_members
 
     def _starting_member(self) -> dict[str, Any]:
         """`pretrain.learner_start: member`: the RLlib state of generation 0's member with
-        the highest η (the lowest node on a tie), which the learner starts from."""
+        the highest η (the lowest node on a tie), which the learner starts from; for a
+        method without a population (self-play), the shipped population's (`_shipped_start`)."""
+        if self.config.strategy.population_kind is None:
+            return self._shipped_start()
         members = ray.get(self.coord.view.remote())["members"]
         best = max(members, key=lambda m: (m["eta"] or 0.0, -m["node"]))
         self._say(
@@ -210,6 +215,21 @@ class Trainer:
         )
         self.start_node = best["node"]
         return ray.get(self.coord.member_states.remote([best["node"]]))[best["node"]]
+
+    def _shipped_start(self) -> dict[str, Any]:
+        """Self-play's learner from the most preferred member of the shipped population
+        `pretrain.population` names (say FCP's, whose members are self-play checkpoints):
+        the strategy a population method's learner starts from, without the population."""
+        c = self.config
+        donor, manifest, node, eta = shipped.preferred_member(
+            c.pretrain.population, c.seed, c.layout()
+        )
+        self._say(
+            f"gen 1: the learner starts from member {node} of the shipped population "
+            f"{donor.root.name} (η {eta:.3f}, the highest of {len(manifest['members'])})"
+        )
+        self.start_node = node
+        return donor.load_member_state(node)
 
     def _pretrain(self) -> dict[str, Any]:
         c = self.config

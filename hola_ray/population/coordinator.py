@@ -75,6 +75,7 @@ class Coordinator:
         else:
             state = self.run.read_json(self.generation, "state.json")
             self.population = Population.from_dict(state["population"])
+            self.rules.setup(self.population)  # one adopted from another method's build
             self.last_metrics = self.run.read_json(self.generation, "metrics.json")
         self.phase = "idle"
         self._edges: list[EdgeResult] = []

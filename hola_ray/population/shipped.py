@@ -179,19 +179,35 @@ def check_apart_from_pools(folder: Path, manifest: Mapping[str, Any]) -> None:
 
 
 def load(
-    population: str | Path, seed: int, layout: Mapping[str, Any], kind: str
+    population: str | Path, seed: int, layout: Mapping[str, Any], kind: str | tuple[str, ...]
 ) -> tuple[RunDir, dict[str, Any]]:
     """A verified shipped population that fits the run: its folder as a run directory to
-    adopt generation 0 from, and its manifest."""
-    folder = population_dir(population, seed, kind)
+    adopt generation 0 from, and its manifest. `kind`: the kind the run's method builds
+    (what `{kind}` in the name reads), or it and the others the method may seat."""
+    kinds = (kind,) if isinstance(kind, str) else kind
+    folder = population_dir(population, seed, kinds[0])
     manifest = read(folder)
-    if manifest.get("kind") != kind:
+    if manifest.get("kind") not in kinds:
         raise PopulationError(
             f"population {folder.name} was built by {manifest.get('kind')!r} pre-training; "
-            f"this run's method builds {kind!r} populations (pre-train instead with "
+            f"this run's method builds {kinds[0]!r} populations (pre-train instead with "
             "pretrain.population: none)"
         )
     verify(folder, manifest)
     check_layout(folder, manifest, layout)
     check_apart_from_pools(folder, manifest)
     return RunDir(folder), manifest
+
+
+def preferred_member(
+    population: str | Path, seed: int, layout: Mapping[str, Any]
+) -> tuple[RunDir, dict[str, Any], int, float]:
+    """A shipped population's most preferred member, the highest η of its G_0 (the lowest
+    node on a tie), verified as `load` verifies whatever its kind: where a method without a
+    population of its own (self-play) starts its learner (`pretrain.learner_start: member`).
+    Returns the folder as a run directory, its manifest, the node and its η."""
+    folder = population_dir(population, seed)
+    donor, manifest = load(folder, seed, layout, str(read(folder).get("kind")))
+    eta = {int(v): float(x) for v, x in donor.read_json(0, "eta.json").items()}
+    node = max(sorted(eta), key=lambda v: eta[v])
+    return donor, manifest, node, eta[node]

@@ -327,6 +327,23 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
     for name, value in member.items():
         assert (weights[LEARNER][name] == value).all(), name
 
+    # self-play has no population: its learner alone starts from the shipped favourite
+    started.clear()
+    said = train(run | {"method": "sp"}, tmp_path / "sp", capsys)
+    assert f"the learner starts from member {favourite} of the shipped population tiny-s0" in said
+    sp = RunDir(tmp_path / "sp")
+    assert sp.completed() == [1] and sp.metrics_rows()[0]["learner_start_node"] == favourite
+    [weights] = started
+    for name, value in member.items():
+        assert (weights[LEARNER][name] == value).all(), name
+
+    # PBT may seat MEP's members as its starting agents; generation 1 trains agent 0
+    train(run | {"method": "pbt"}, tmp_path / "pbt", capsys)
+    pbt = RunDir(tmp_path / "pbt")
+    assert pbt.completed() == [0, 1] and pbt.metrics_rows()[0]["adopted_from"] == "tiny-s0"
+    extra = pbt.read_json(1, "state.json")["population"]["extra"]
+    assert set(extra["agent_hyper"]) == {"0", "1", "2"} and set(extra["agent_scores"]) == {"0"}
+
     # a run with another reward takes the members and weighs G_0 under its own reward
     env = smoke["env"] | {"reward": smoke["env"].get("reward", {}) | {"collision": 30.0}}
     other = smoke | {"env": env, "pretrain": {"population": "tiny-s0"}, "generations": 0}
@@ -354,7 +371,7 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
 
     narrow = {"oracle": smoke["oracle"] | {"hidden": [16, 16]}}
     assert "hidden [32, 32], the run's [16, 16]" in refused(narrow)
-    assert "built by 'mep' pre-training" in refused({"method": "pbt"})
+    assert "built by 'mep' pre-training" in refused({"method": "fcp", "fcp": {"agents": 1}})
     broken = tmp_path / "broken"
     shutil.copytree(folder, broken)
     export = broken / manifest["members"]["node_1"]["file"]

@@ -32,14 +32,19 @@ def test_yaml_round_trip(name):
     assert RunConfig.from_dict(yaml.safe_load(c.to_yaml())) == c
 
 
-def test_a_method_without_a_population_ignores_the_defaults_shipped_one():
+def test_a_method_without_a_population_takes_only_its_start_from_the_shipped_one():
     """`python -m hola_ray.run --set method=sp` on the embedded default (which adopts a
     shipped population and starts its learner from a member): self-play has no population,
-    so both fields are left unused rather than refused."""
+    so the shipped one gives its learner's start only, and with `population: none` it
+    starts from random weights."""
+    from hola_ray.methods.trainer import Trainer
     from hola_ray.run import DEFAULT
 
     config = RunConfig.from_dict(DEFAULT | {"method": "sp"})
     assert config.pretrain.shipped and config.strategy.population_kind is None
+    assert Trainer(config, Path("unused"))._starts_from_member()
+    alone = RunConfig.from_dict(DEFAULT | {"method": "sp", "pretrain": {"population": "none"}})
+    assert not Trainer(alone, Path("unused"))._starts_from_member()
 
 
 @pytest.mark.parametrize(
