@@ -195,12 +195,20 @@ def test_methods_and_their_paired_differences_from_every_trials_episodes():
     assert "| hola-uniform | hot |" in table and " tie |" in table
 
 
-@pytest.mark.parametrize("name", ["smoke", "laptop", "paper"])
-def test_the_shipped_experiments_load(name):
+@pytest.mark.parametrize(
+    ("name", "evaders"), [("smoke", 2), ("laptop-3v2", 2), ("paper", 2), ("laptop", 1)]
+)
+def test_the_shipped_experiments_load(name, evaders):
+    """Every method, three seeds; the laptop comparison at competence at 3 vs 1 on the
+    shipped populations, every learner starting from a member."""
     exp = Experiment.from_yaml(ROOT / "configs" / "experiments" / f"{name}.yaml")
-    if name != "smoke":  # every method, three seeds, the paper's 3 vs 2
+    assert all(exp.run_config(t).env.n_evaders == evaders for t in exp.trials())
+    if name != "smoke":
         assert set(exp.methods) == set(METHODS) and exp.seeds == (0, 1, 2)
-        assert all(exp.run_config(t).env.n_evaders == 2 for t in exp.trials())
+    if name == "laptop":
+        for trial in exp.trials():
+            config = exp.run_config(trial)
+            assert config.pretrain.shipped and config.pretrain.learner_start == "member"
 
 
 def test_a_variant_is_a_named_method_with_its_own_overrides(tmp_path):

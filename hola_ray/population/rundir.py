@@ -34,6 +34,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import pickle
 import shutil
 from collections.abc import Mapping
 from pathlib import Path
@@ -90,7 +91,7 @@ class RunDir:
         _atomic_torch_save(dict(state), self.member_state(node))
 
     def load_member_state(self, node: int) -> dict[str, Any]:
-        return torch.load(self.member_state(node), map_location="cpu", weights_only=False)
+        return load_state(self.member_state(node))
 
     def load_member_export(self, node: int) -> dict[str, Any]:
         return torch.load(self.member_export(node), map_location="cpu", weights_only=True)
@@ -260,7 +261,7 @@ class RunDir:
         path = self.learner_state(g)
         if not path.exists():
             return None
-        return torch.load(path, map_location="cpu", weights_only=False)
+        return load_state(path)
 
     # ---- pre-training checkpoints ---------------------------------------------------------
     def save_pretrain(self, states: Mapping[str, Mapping[str, Any]], progress: Mapping) -> None:
@@ -348,6 +349,35 @@ def _atomic_write_text(path: Path, text: str) -> None:
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(text)
     os.replace(tmp, path)
+
+
+class UnsafeFile(ValueError):
+    """A run-directory file that holds more than tensors, arrays and plain data."""
+
+
+_ARRAY_GLOBALS = [
+    getattr(np, "_core", getattr(np, "core", None)).multiarray._reconstruct,
+    np.ndarray,
+    np.dtype,
+    *(type(np.dtype(t)) for t in ("float32", "float64", "int32", "int64", "bool")),
+]
+"""what pickling a numpy array names: its reconstructor, its type and its dtype"""
+
+
+def load_state(path: Path) -> dict[str, Any]:
+    """An RLlib module state (name → numpy array) read with `weights_only=True`: tensors,
+    plain data and numpy arrays (allowed by name), nothing else unpickled, so a run
+    directory copied from elsewhere cannot run code on `--resume`. A file that would
+    (any other global) is refused in one line naming it."""
+    try:
+        with torch.serialization.safe_globals(_ARRAY_GLOBALS):
+            return torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as err:
+        lines = [x.strip() for x in str(err).splitlines() if x.strip()]
+        said = next((x for x in lines if "GLOBAL" in x or "Unsupported" in x), lines[-1])
+        raise UnsafeFile(
+            f"{path}: refused, it holds more than tensors, arrays and plain data ({said})"
+        ) from None
 
 
 def _atomic_torch_save(obj: Any, path: Path) -> None:

@@ -166,3 +166,34 @@ def test_runs_in_folders_of_one_name_get_different_actor_names(tmp_path):
     a, b = tmp_path / "x" / "paper", tmp_path / "y" / "paper"
     assert coordinator_name(str(a)) != coordinator_name(str(b))
     assert run_id(str(a)).startswith("paper-") and run_id(str(a)) == run_id(str(a / ".." / "paper"))
+
+
+def test_a_run_directory_file_that_would_run_code_is_refused(tmp_path):
+    """`--resume` reads members' and the learner's RLlib states with `weights_only=True`:
+    numpy arrays (float and integer) come back as they went in; a file whose unpickling
+    would call a function (here os.system) is refused in one line, and nothing runs."""
+    import os
+
+    import torch
+
+    from hola_ray.population.rundir import UnsafeFile
+
+    run = RunDir(tmp_path / "run")
+    run.members.mkdir(parents=True)
+    state = {"w": np.arange(6, dtype=np.float32).reshape(2, 3), "n": np.arange(3)}
+    run.save_member(0, {"plain": torch.zeros(2)}, state)
+    back = run.load_member_state(0)
+    assert set(back) == {"w", "n"} and all((back[k] == state[k]).all() for k in state)
+
+    witness = tmp_path / "ran"
+
+    class Crafted:
+        def __reduce__(self):
+            return (os.system, (f"touch {witness}",))
+
+    torch.save({"w": Crafted()}, run.member_state(1))
+    with pytest.raises(UnsafeFile) as err:
+        run.load_member_state(1)
+    said = str(err.value)
+    assert "\n" not in said and str(run.member_state(1)) in said and "posix.system" in said
+    assert not witness.exists()
