@@ -40,6 +40,7 @@ from hola_ray.evaluation.report import plot
 from hola_ray.evaluation.rollout import PolicyError
 from hola_ray.evaluation.zero_shot import evaluate
 from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
+from hola_ray.policies.learned import manifest_scenario
 from hola_ray.policies.registry import load_export, policy_file
 
 
@@ -65,8 +66,9 @@ def learner_evaders(path: Path, config: PursuitConfig) -> int | None:
         return None
     if not isinstance(export.get("weights"), list | tuple) or not export["weights"]:
         raise EvaluationError(f"{file}: not a policy export (no weights)")
-    if export.get("scenario"):
-        return int(export["scenario"].get("n_evaders", config.n_evaders))
+    scenario = export.get("scenario") or manifest_scenario(file)
+    if scenario:
+        return int(scenario.get("n_evaders", config.n_evaders))
     inputs = export["weights"][0].shape[1] - len((export.get("features") or {}).get("indices", ()))
     rest = 2 + 2 * (config.n_pursuers - 1) + 4  # obstacle, teammates, own
     if (inputs - rest) % 3 or inputs <= rest:

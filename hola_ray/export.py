@@ -31,7 +31,7 @@ def resolve(policy: str, best: bool = False) -> tuple[Any, dict[str, Any]]:
     """(MLPPolicy, source facts) of a run directory, generation folder, export file or pool
     member id."""
     from hola_ray.evaluation.pools import MEMBERS, POOLS, pool_dir, read_manifest, sha256
-    from hola_ray.policies.learned import MLPPolicy
+    from hola_ray.policies.learned import MLPPolicy, manifest_scenario
     from hola_ray.policies.registry import load_export, policy_file
 
     path = Path(policy)
@@ -61,9 +61,12 @@ def resolve(policy: str, best: bool = False) -> tuple[Any, dict[str, Any]]:
         else:
             file = policy_file(path)
         export = load_export(file)
-        scenario = export.get("scenario")
+        scenario = export.get("scenario") or manifest_scenario(file)
         if scenario is None:
-            raise ValueError(f"{file} does not say which scenario it was trained in")
+            raise ValueError(
+                f"{file} does not say which scenario it was trained in, and no manifest "
+                "beside it lists it"
+            )
         config = PursuitConfig.from_dict(scenario)
         source |= _run_facts(path, file) | {"commit": export.get("commit")}
     if not file.is_file():

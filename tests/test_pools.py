@@ -196,3 +196,32 @@ def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):
                     names = {n.strip() for n in line.split(" import ", 1)[1].split(",")}
                     allowed = {"load_validation", "pooled_files", "sha256", "MANIFEST", "ROOT"}
                     assert names <= allowed, (source, names - allowed)
+
+
+def test_a_pool_file_by_its_path_plays_in_the_scenario_its_manifest_names(tmp_path):
+    """`export`, `fly`, `evaluate` and `replay` take a pool member's file by its path
+    (pools/hot/ppo-1.pt, a shipped population's members/node_0002.pt): its export predates
+    exports carrying their scenario, so the manifest beside it gives it. A copy away from
+    its manifest is still refused in one line."""
+    import shutil
+
+    from hola_ray.evaluate import learner_evaders
+    from hola_ray.evaluation.pools import POOLS_DIR
+    from hola_ray.export import resolve
+    from hola_ray.policies.registry import trained_scenario
+
+    hot = POOLS_DIR / "hot" / "ppo-1.pt"
+    member = POOLS_DIR / "populations" / "fcp-3v1-s0" / "members" / "node_0002.pt"
+    assert torch.load(hot, weights_only=True).get("scenario") is None  # the premise
+    policy, source = resolve(str(hot))  # export and fly
+    assert policy.config.n_evaders == 2 and source["file"] == str(hot)
+    assert MLPPolicy.load(hot).config.n_evaders == 2
+    assert learner_evaders(hot, ONE) == 2  # evaluate
+    assert trained_scenario(hot)["n_evaders"] == 2  # replay
+    assert trained_scenario(member)["n_evaders"] == 1
+    assert trained_scenario(member)["reward"]["approach"] == "distance"
+
+    stray = tmp_path / "ppo-1.pt"
+    shutil.copyfile(hot, stray)
+    with pytest.raises(ValueError, match=r"ppo-1.pt does not say which scenario .* no manifest"):
+        MLPPolicy.load(stray)

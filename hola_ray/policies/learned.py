@@ -19,6 +19,7 @@ as the RLlib module did (`hola_ray.oracle.module`).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -187,11 +188,12 @@ class MLPPolicy(Policy):
             config = config_or_path
         export = torch.load(Path(path), map_location="cpu", weights_only=True)
         if config is None:
-            scenario = export.get("scenario")
+            scenario = export.get("scenario") or manifest_scenario(path)
             if scenario is None:
                 raise ValueError(
                     f"{path} does not say which scenario it was trained in (exported before "
-                    "exports carried it): load it with MLPPolicy.load(config, path)"
+                    "exports carried it, and no manifest beside it lists it): load it with "
+                    "MLPPolicy.load(config, path)"
                 )
             config = PursuitConfig.from_dict(scenario)
         return cls(config, export, name=Path(path).stem)
@@ -263,3 +265,25 @@ def rescale_action(action: np.ndarray, low: float = 0.0, high: float = 1.0) -> n
     action = np.asarray(action, dtype=np.float32)
     scaled = low32 + (action + np.float32(1.0)) * (high32 - low32) / np.float32(2.0)
     return np.clip(scaled, low32, high32)
+
+
+def manifest_scenario(file: str | Path) -> dict | None:
+    """The scenario a pool member's or a shipped population member's file was trained in,
+    from the manifest beside it (`pools/hot/ppo-1.pt`: pools/hot/manifest.json;
+    `pools/populations/NAME/members/node_0001.pt`: that population's): its exports predate
+    exports carrying it. None for a file no manifest lists."""
+    file = Path(file).resolve()
+    for folder in (file.parent, file.parent.parent):
+        try:
+            manifest = json.loads((folder / "manifest.json").read_text())
+        except (OSError, ValueError):
+            continue
+        if not isinstance(manifest, dict):
+            continue
+        relative = file.relative_to(folder).as_posix()
+        for entry in (manifest.get("members") or {}).values():
+            if not isinstance(entry, dict) or entry.get("file") != relative:
+                continue
+            env = (entry.get("config_values") or manifest.get("config_values") or {}).get("env")
+            return dict(env) if env else None
+    return None

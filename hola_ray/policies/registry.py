@@ -75,9 +75,12 @@ def load_export(path: str | Path) -> dict:
 
 def trained_scenario(path: str | Path) -> dict | None:
     """The scenario a run directory's learner or an export file was trained in, when its
-    export says (`PursuitConfig.to_dict()`); None for a name or an older export."""
+    export or its manifest says (`PursuitConfig.to_dict()`); None for a name or an older
+    export that no manifest lists."""
+    from hola_ray.policies.learned import manifest_scenario
+
     try:
-        return load_export(path).get("scenario")
+        return load_export(path).get("scenario") or manifest_scenario(policy_file(path))
     except ValueError:
         return None
 
