@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -12,6 +13,19 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def make_dir(path: Path, flag: str = "--out") -> None:
+    """Create a run's or an experiment's folder before anything starts; one that cannot be
+    (a path through a regular file, no permission, a full disk) is a ConfigError naming the
+    path and why."""
+    from hola_ray.env.config import ConfigError
+
+    try:
+        Path(path).mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        why = err.strerror or type(err).__name__
+        raise ConfigError(f"{flag} {path} cannot be created: {why}") from None
 
 
 def fail(message: str) -> int:

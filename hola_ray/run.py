@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from hola_ray import interrupt
-from hola_ray.cli import apply_sets
+from hola_ray.cli import apply_sets, make_dir
 from hola_ray.env.config import ConfigError, load_yaml, located
 
 if TYPE_CHECKING:
@@ -108,6 +108,7 @@ def resolve(args: argparse.Namespace) -> tuple[RunConfig, Path]:
         config = with_generations(config, args.generations)
     out = args.out or Path("runs") / time.strftime(f"{config.method}-%Y%m%d-%H%M%S")
     check_run_dir(out, resume=False)
+    make_dir(out)
     return config, out
 
 

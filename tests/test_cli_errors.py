@@ -91,3 +91,18 @@ def test_pools_bad_inputs(tmp_path, capsys):
     torch.save(random_export(PursuitConfig().obs_dim, hidden=(8,)), learner)
     assert evaluate([str(learner), "--pool", str(broken)]) == 2
     one_line(capsys, "member d3qn-g-1")
+
+
+@pytest.mark.parametrize("command", ["run", "experiment"])
+def test_an_out_that_cannot_be_created_is_one_line_naming_it(tmp_path, capsys, command):
+    """`--out` through a regular file: refused before Ray starts, naming the path."""
+    import importlib
+
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    out = blocker / "run"
+    argv = ["--out", str(out)]
+    if command == "experiment":
+        argv += ["--config", str(POOLS_DIR.parent / "configs" / "experiments" / "smoke.yaml")]
+    assert importlib.import_module(f"hola_ray.{command}").main(argv) == 2
+    one_line(capsys, f"--out {out} cannot be created: Not a directory")

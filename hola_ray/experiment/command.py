@@ -27,6 +27,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     # imported here, not above: `script` re-runs the command under the fixed hash seed
     # before torch, Ray and RLlib (which the experiment's methods import) load
+    from hola_ray.cli import make_dir
     from hola_ray.env.config import ConfigError
     from hola_ray.experiment.config import CONFIG_NAME, Experiment
     from hola_ray.experiment.runner import Runner
@@ -46,6 +47,7 @@ def main(argv: list[str] | None = None) -> int:
             out = args.out or Path("runs") / time.strftime(f"{args.config.stem}-%Y%m%d-%H%M%S")
             if (out / CONFIG_NAME).is_file():
                 raise ConfigError(f"{out} already holds an experiment; continue it with --resume")
+            make_dir(out)
     except ConfigError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
