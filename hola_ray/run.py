@@ -203,10 +203,36 @@ def main(argv: list[str] | None = None) -> int:
         Trainer(config, out, progress=not args.quiet, lock=lock).fit()
     except KeyboardInterrupt:
         return interrupted(out)
+    except OSError as err:  # a failed write, here or in the coordinator (a Ray task's error)
+        return write_failed(out, err)
     finally:
         lock.release()
     print(f"done: learner {out / 'learner.pt'}; status: python -m hola_ray.status {out}")
     return 0
+
+
+def write_failed(out: Path, err: OSError) -> int:
+    """A write that failed (a full disk, a path blocked): one line naming the file and what
+    is saved; the generation being written is absent or whole, never half (its folder is
+    renamed into place), so --resume goes on from the last complete one; 1."""
+    import ray
+
+    from hola_ray.population.rundir import RunDir
+
+    cause = getattr(err, "cause", None) or err  # a Ray task's error carries the OSError
+    # a rename names its source first: the file meant is the target
+    path = getattr(cause, "filename2", None) or getattr(cause, "filename", None) or "a file"
+    why = getattr(cause, "strerror", None) or str(cause).strip().splitlines()[-1]
+    done = RunDir(out).completed()
+    saved = f"generations {done[0]}–{done[-1]} are saved" if done else "no generation is saved"
+    print(
+        f"error: writing {path} failed ({why}); {saved} in {out}; once it can be written, "
+        f"continue with: python -m hola_ray.run --resume {out}",
+        file=sys.stderr,
+        flush=True,
+    )
+    ray.shutdown()
+    return 1
 
 
 def interrupted(out: Path) -> int:

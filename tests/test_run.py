@@ -324,3 +324,27 @@ def test_a_fresh_run_refuses_a_used_run_directory(tmp_path, capsys):
     assert "--resume" in capsys.readouterr().err
     assert run.main(["--resume", str(tmp_path / "nothing")]) == 2
     assert not ray.is_initialized()
+
+
+def test_a_write_that_fails_during_a_generation_is_one_line_and_the_run_resumes(
+    smoke_run, tmp_path
+):
+    """metrics.csv blocked by a folder of that name (a write no permission can bypass):
+    resuming for a second generation ends with one line naming the file and exit code 1,
+    and every generation on disk is whole and loads (what --resume starts from)."""
+    import shutil
+
+    out = tmp_path / "blocked"
+    shutil.copytree(smoke_run[0], out, ignore=shutil.ignore_patterns(".lock"))
+    (out / "metrics.csv").unlink()
+    (out / "metrics.csv").mkdir()
+    (out / "metrics.csv" / "keep").write_text("")
+    done = main_job("--resume", str(out), "--generations", "2")
+    err = done.stderr.strip().splitlines()
+    assert done.returncode == 1, done.stderr[-2000:]
+    assert err[-1].startswith(f"error: writing {out / 'metrics.csv'} failed (Is a directory)")
+    assert "Traceback" not in done.stderr
+    r = RunDir(out)
+    assert r.completed() in ([0, 1], [0, 1, 2])
+    for g in r.completed()[1:]:
+        assert r.load_learner_state(g) and (r.generation(g) / "metrics.json").is_file()
