@@ -18,10 +18,41 @@ from hola_ray.experiment.results import (
 )
 from hola_ray.experiment.tasks import MARK, _evaluate_trial, _reference, _run_trial, trial_state
 
-
 # ---- trials on Ray --------------------------------------------------------------------------
+LOST_WITH_A_NODE = (
+    "NodeDiedError",
+    "WorkerCrashedError",
+    "ActorDiedError",
+    "ActorUnavailableError",
+    "OwnerDiedError",
+    "ObjectLostError",
+    "LocalRayletDiedError",
+)
+"""Ray's errors for a task or actor that died with its process or node, not of its own
+fault (a trial's own exception arrives as a RayTaskError of that exception)"""
+
+
+def node_lost(err: BaseException) -> bool:
+    """Whether a trial's failure is its node's (or a process's it needs): the error, or
+    what a RayTaskError carries, is one of `LOST_WITH_A_NODE`."""
+    import ray.exceptions as rx
+
+    kinds = tuple(getattr(rx, n) for n in LOST_WITH_A_NODE if hasattr(rx, n))
+    seen: BaseException | None = err
+    for _ in range(8):  # a chain of tasks' errors, never a cycle
+        if seen is None:
+            return False
+        if isinstance(seen, kinds):
+            return True
+        seen = getattr(seen, "cause", None) or seen.__cause__
+    return False
+
+
 class Runner:
     """Runs an experiment's trials as Ray tasks, evaluates them and writes the results."""
+
+    max_lost: int = 3
+    """times a trial is resubmitted after its node (or a worker it needs) was lost"""
 
     def __init__(self, experiment: Experiment, out: Path, say=print, poll_s: float = 5.0):
         self.exp = experiment
@@ -35,6 +66,10 @@ class Runner:
         self.mirror: bool | None = None
         """None: each trial mirrors its folder to this node if its own node cannot see
         DIR (`sees`); True / False: always / never"""
+
+    def mirror_of(self, trial: str) -> bool | None:
+        """Whether `trial` mirrors its folder (`mirror`; a subclass may decide per trial)."""
+        return self.mirror
 
     def token(self) -> str:
         """DIR/.experiment's token (made once): a trial's node that reads it sees DIR."""
@@ -146,6 +181,7 @@ class Runner:
         placing: dict[str, Any] = {}  # trial → its group's ready(), until the group is placed
         started: dict[str, float] = {}
         failed: dict[str, str] = {}
+        lost: dict[str, int] = dict.fromkeys(todo, 0)
         waiting = list(todo)
         last_view, last_line = 0.0, ""
         try:
@@ -162,7 +198,7 @@ class Runner:
                         token,
                         here,
                         pack(self.trial_dir(t)) if partial else None,
-                        self.mirror,
+                        self.mirror_of(t),
                         self.donors(t),
                     )
                     running[ref] = t
@@ -175,8 +211,20 @@ class Runner:
                         took = time.monotonic() - started[t]
                         self.say(f"{t}: done in {took / 60:.1f} min ({how})")
                     except Exception as err:  # noqa: BLE001 - one failed trial must not stop the rest
-                        failed[t] = f"{type(err).__name__}: {str(err).splitlines()[-1][:300]}"
-                        self.say(f"{t}: FAILED: {failed[t]}")
+                        said = f"{type(err).__name__}: {str(err).strip().splitlines()[-1][:300]}"
+                        if node_lost(err) and lost[t] < self.max_lost:
+                            lost[t] += 1
+                            states[t] = trial_state(self.trial_dir(t), self.configs[t].generations)
+                            last = states[t][1]
+                            self.say(
+                                f"{t}: lost with its node ({type(err).__name__}); resubmitted "
+                                + (f"after generation {last}" if last is not None else "afresh")
+                                + f" ({lost[t]} of {self.max_lost})"
+                            )
+                            waiting.insert(0, t)
+                        else:
+                            failed[t] = said
+                            self.say(f"{t}: FAILED: {failed[t]}")
                     ray.util.remove_placement_group(groups.pop(t))
                     placing.pop(t, None)
                 for t, ref in list(placing.items()):
