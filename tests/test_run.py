@@ -326,7 +326,7 @@ def test_a_fresh_run_refuses_a_used_run_directory(tmp_path, capsys):
     assert not ray.is_initialized()
 
 
-def test_a_write_that_fails_during_a_generation_is_one_line_and_the_run_resumes(
+def test_a_write_that_fails_during_a_generation_is_one_line_and_generations_stay_whole(
     smoke_run, tmp_path
 ):
     """metrics.csv blocked by a folder of that name (a write no permission can bypass):
