@@ -1,13 +1,16 @@
-"""Each trial of an experiment runs in a placement group of its own, on a two-node Ray
-cluster (two raylets on this machine, 2 CPUs each): its task takes the first bundle and
-whatever it starts (an env runner's CPU, a member actor) lands in the same group, trials
-run side by side on different nodes, a trial that does not fit yet waits as "waiting for
-CPUs", one bigger than a node spreads over nodes, and every group is removed afterwards."""
+"""Each trial of an experiment runs in a placement group of its own, on a Ray cluster of a
+CPU-less head (the driver) and two 2-CPU workers (raylets on this machine): its task takes
+the first bundle and whatever it starts (an env runner's CPU, a member actor) lands in the
+same group, trials run side by side on different nodes, a trial that does not fit yet
+waits as "waiting for CPUs", one bigger than a node spreads over nodes, and every group is
+removed afterwards. A trial whose node is lost mid-experiment is resubmitted and resumes
+on a live node, in place or mirrored, losing nothing it had completed (the last test)."""
 
 from __future__ import annotations
 
 import json
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -17,19 +20,22 @@ import yaml
 from ray.cluster_utils import Cluster
 
 from hola_ray.experiment import Experiment, Runner
+from hola_ray.population.rundir import RunDir
+from hola_ray.progress import RAY_RUNTIME_ENV
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module", autouse=True)
 def two_nodes():
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 2})
-    cluster.add_node(num_cpus=2)
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0})
+    for _ in range(2):
+        cluster.add_node(num_cpus=2)
     cluster.wait_for_nodes()
-    ray.init(address=cluster.address, include_dashboard=False)
+    ray.init(address=cluster.address, include_dashboard=False, runtime_env=RAY_RUNTIME_ENV)
     # the stand-in trials below travel by value: Ray's workers cannot import a test module
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    yield
+    yield cluster
     ray.shutdown()
     cluster.shutdown()
 
@@ -265,3 +271,106 @@ def test_a_partial_trial_on_a_node_without_the_directory_resumes_and_mirrors_it(
     assert MLPPolicy.load(trial / "learner.pt").config.n_pursuers == 3
     staging = Path(tempfile.gettempdir()) / "hola_ray-trials" / runner.token() / "hola-s0"
     assert not staging.exists()  # removed once all of it was mirrored
+
+
+# ---- a node lost mid-experiment -----------------------------------------------------------
+LOST_GENERATIONS = 3
+
+
+def lost_experiment(tmp_path: Path) -> Experiment:
+    config = {
+        "base": str(ROOT / "configs" / "smoke.yaml"),
+        "overrides": {"generations": LOST_GENERATIONS},
+        "methods": {"hola": {}, "sp": {}},
+        "seeds": [0],
+        "evaluation": {
+            "episodes": 1,
+            "seeds": [0],
+            "cell_episodes": 1,
+            "pools": ["hot"],
+            "learner": "final",
+        },
+    }
+    path = tmp_path / "exp.yaml"
+    path.write_text(yaml.safe_dump(config))
+    return Experiment.from_yaml(path)
+
+
+def stamps(trial_dirs: list[Path]) -> dict[str, tuple[bytes, int]]:
+    """Every file of every completed generation folder: its bytes and its mtime."""
+    out = {}
+    for root in trial_dirs:
+        run = RunDir(root)
+        for g in run.completed():
+            for f in sorted(run.generation(g).iterdir()):
+                out[str(f)] = (f.read_bytes(), f.stat().st_mtime_ns)
+    return out
+
+
+def alive(class_name: str) -> list:
+    from ray.util.state import list_actors
+
+    return list_actors(filters=[("class_name", "=", class_name), ("state", "=", "ALIVE")])
+
+
+class HalfMirrored(Runner):
+    """hola's trial in place, sp's mirrored to the driver's node."""
+
+    def mirror_of(self, trial: str) -> bool | None:
+        return trial.startswith("sp-")
+
+
+def test_a_worker_node_lost_mid_experiment_loses_nothing(two_nodes, tmp_path):
+    """Both trials of a smoke experiment past generation 1, every worker node they run on
+    is removed (processes and all; a node joins for each). The Runner resubmits each lost
+    trial with a fresh pack of its folder, it resumes on a live node after its last
+    complete generation, and the experiment ends with every trial in results.json: one
+    trial in place (a filesystem every node sees), the other mirrored to the driver's node
+    (one it does not). No completed generation is rewritten; no actor is left."""
+    cluster = two_nodes
+    runner = HalfMirrored(lost_experiment(tmp_path), tmp_path / "out", poll_s=0.2)
+    lines: list[str] = []
+    runner.say = lines.append
+    outcome: list = []
+
+    def drive():
+        try:
+            outcome.append(runner.run())
+        except BaseException as err:  # noqa: BLE001 - the test reads it below
+            outcome.append(err)
+
+    thread = threading.Thread(target=drive, daemon=True)
+    thread.start()
+    dirs = [runner.trial_dir(t) for t in runner.exp.trials()]
+    # a trial past generation 1: lose every node a trial runs on (a trial's coordinator
+    # lives on its node)
+    wait_until(lambda: any(1 in RunDir(d).completed() for d in dirs) or not thread.is_alive(), "")
+    hosts = {a.node_id for a in alive("Coordinator")}
+    before = stamps(dirs)
+    doomed = [n for n in cluster.worker_nodes if n.node_id in hosts]
+    assert doomed, hosts
+    for _ in doomed:  # the cluster keeps two 2-CPU workers
+        cluster.add_node(num_cpus=2)
+    cluster.wait_for_nodes()
+    for node in doomed:
+        cluster.remove_node(node)
+
+    thread.join(timeout=300)
+    assert not thread.is_alive(), lines
+    [results] = outcome
+    assert isinstance(results, dict), f"{results!r}\n" + "\n".join(lines)
+    lost = [line for line in lines if "lost with its node" in line and "resubmitted" in line]
+    assert lost, lines
+    assert not any("FAILED" in line for line in lines), lines
+    done = {line.split(":")[0]: line for line in lines if ": done in" in line}
+    assert "in place" in done["hola-s0"] and "mirrored" in done["sp-s0"], done
+    assert set(results["trials"]) == set(runner.exp.trials())
+    for d in dirs:
+        run = RunDir(d)
+        first = 1 if d.name.startswith("sp-") else 0  # self-play has no generation 0
+        assert run.completed() == list(range(first, LOST_GENERATIONS + 1)), d
+        assert [r["generation"] for r in run.metrics_rows()] == run.completed()
+        assert not list((d / "generations").glob(".tmp*"))
+    after = stamps(dirs)
+    assert {f: after[f] for f in before} == before  # no completed generation rewritten
+    assert not alive("Coordinator") and not alive("Mirror")
