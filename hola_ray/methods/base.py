@@ -83,6 +83,9 @@ class Method:
     kind may replace it (`pretrain.population`); None: the method has no population"""
     also_seats: ClassVar[tuple[str, ...]] = ()
     """other kinds of shipped population it may take as generation 0"""
+    sets_learner: ClassVar[bool] = False
+    """each generation puts its own weights into the learner (`before_training`; PBT
+    trains its agents in turn): `pretrain.learner_start` does not apply"""
     section: ClassVar[tuple[str, type] | None] = None
     """the method's own run-config section (name, frozen dataclass with `validate()`), or
     None; `config.<name>` reads it"""

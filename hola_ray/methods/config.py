@@ -97,7 +97,8 @@ class PretrainConfig:
     centrality; the lowest node on a tie), as the paper's Oracle maps a strategy j to
     BR(j, G_j) and G_0's most preferred member is the natural j at generation 1; for
     self-play, the most preferred member of the shipped `population` (FCP's: a self-play
-    checkpoint; with `population: none`, random)"""
+    checkpoint; with `population: none`, random); PBT, whose generations train its agents
+    in turn, ignores it"""
 
     def validate(self) -> None:
         positive_int("pretrain", self, "env_steps", maximum=10**11)

@@ -125,6 +125,7 @@ class ExploitExplore:
 class PBT(Method):
     section = ("pbt", PBTConfig)
     population_kind: ClassVar[str | None] = "pbt"
+    sets_learner: ClassVar[bool] = True
     also_seats: ClassVar[tuple[str, ...]] = ("mep",)
     """MEP's members, trained with its entropy bonus, as the agents PBT starts from"""
 

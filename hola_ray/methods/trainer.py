@@ -199,7 +199,8 @@ class Trainer:
     def _starts_from_member(self) -> bool:
         c = self.config
         has_members = c.strategy.population_kind is not None or c.pretrain.shipped
-        return c.pretrain.learner_start == "member" and has_members
+        own = c.strategy.sets_learner  # PBT: each generation starts from one of its agents
+        return c.pretrain.learner_start == "member" and has_members and not own
 
     def _starting_member(self) -> dict[str, Any]:
         """`pretrain.learner_start: member`: the RLlib state of generation 0's member with

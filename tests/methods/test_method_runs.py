@@ -341,6 +341,7 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
     train(run | {"method": "pbt"}, tmp_path / "pbt", capsys)
     pbt = RunDir(tmp_path / "pbt")
     assert pbt.completed() == [0, 1] and pbt.metrics_rows()[0]["adopted_from"] == "tiny-s0"
+    assert "learner_start_node" not in pbt.metrics_rows()[1]  # it trains agent 0, not a start
     extra = pbt.read_json(1, "state.json")["population"]["extra"]
     assert set(extra["agent_hyper"]) == {"0", "1", "2"} and set(extra["agent_scores"]) == {"0"}
 
