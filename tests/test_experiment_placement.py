@@ -274,7 +274,7 @@ def test_a_partial_trial_on_a_node_without_the_directory_resumes_and_mirrors_it(
 
 
 # ---- a node lost mid-experiment -----------------------------------------------------------
-LOST_GENERATIONS = 3
+LOST_GENERATIONS = 2
 
 
 def lost_experiment(tmp_path: Path) -> Experiment:
