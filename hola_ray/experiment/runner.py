@@ -211,7 +211,6 @@ class Runner:
                         took = time.monotonic() - started[t]
                         self.say(f"{t}: done in {took / 60:.1f} min ({how})")
                     except Exception as err:  # noqa: BLE001 - one failed trial must not stop the rest
-                        said = f"{type(err).__name__}: {str(err).strip().splitlines()[-1][:300]}"
                         if node_lost(err) and lost[t] < self.max_lost:
                             lost[t] += 1
                             states[t] = trial_state(self.trial_dir(t), self.configs[t].generations)
@@ -223,7 +222,8 @@ class Runner:
                             )
                             waiting.insert(0, t)
                         else:
-                            failed[t] = said
+                            why = str(err).strip().splitlines()[-1][:300]
+                            failed[t] = f"{type(err).__name__}: {why}"
                             self.say(f"{t}: FAILED: {failed[t]}")
                     ray.util.remove_placement_group(groups.pop(t))
                     placing.pop(t, None)

@@ -209,7 +209,8 @@ class Trainer:
         if self.config.strategy.population_kind is None:
             return self._shipped_start()
         members = ray.get(self.coord.view.remote())["members"]
-        best = max(members, key=lambda m: (m["eta"] or 0.0, -m["node"]))
+        node = shipped.most_preferred({m["node"]: m["eta"] for m in members})
+        best = next(m for m in members if m["node"] == node)
         self._say(
             f"gen 1: the learner starts from member {best['node']} (η {best['eta'] or 0:.3f}, "
             f"the highest of {len(members)})"

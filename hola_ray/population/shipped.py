@@ -209,5 +209,11 @@ def preferred_member(
     folder = population_dir(population, seed)
     donor, manifest = load(folder, seed, layout, str(read(folder).get("kind")))
     eta = {int(v): float(x) for v, x in donor.read_json(0, "eta.json").items()}
-    node = max(sorted(eta), key=lambda v: eta[v])
+    node = most_preferred(eta)
     return donor, manifest, node, eta[node]
+
+
+def most_preferred(eta: Mapping[int, float | None]) -> int:
+    """The node with the highest η (none counts as 0), the lowest node on a tie: the
+    member a learner starts from with `pretrain.learner_start: member`."""
+    return max(sorted(eta), key=lambda v: eta[v] or 0.0)
