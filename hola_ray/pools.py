@@ -57,8 +57,7 @@ def train_member(member: Member, progress: bool = True) -> tuple[Path, dict[str,
         import ray
 
         from hola_ray.methods.trainer import Trainer
-        from hola_ray.population.coordinator import NAMESPACE
-        from hola_ray.progress import init_local_ray
+        from hola_ray.progress import NAMESPACE, init_local_ray
 
         if not ray.is_initialized():
             init_local_ray(namespace=NAMESPACE)

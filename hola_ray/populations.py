@@ -70,9 +70,8 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
 
     from hola_ray.methods.config import RunConfig
     from hola_ray.methods.trainer import Trainer
-    from hola_ray.population.coordinator import NAMESPACE
     from hola_ray.population.rundir import RunDir
-    from hola_ray.progress import init_local_ray
+    from hola_ray.progress import NAMESPACE, init_local_ray
 
     path = CONFIGS / f"{name}.yaml"
     if not path.is_file():

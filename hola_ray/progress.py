@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 import time
+from contextlib import contextmanager
 from typing import Any
 
 from tqdm.auto import tqdm
@@ -74,38 +75,86 @@ RAY_RUNTIME_ENV = {
 iterates sets of strings in one order (see `fixed_hash_seed`)."""
 
 
+NAMESPACE = "hola_ray"
+"""The Ray namespace of this project's named actors (coordinators, mirrors)."""
+
+
+def worker_runtime_env(local: bool = True) -> dict[str, Any] | None:
+    """The runtime env this project's Ray workers need. A local Ray started under a fixed
+    PYTHONHASHSEED needs none: its workers inherit the variable from the raylet, and quiet
+    their own loggers where they build RLlib's parts (`quiet_ray_noise`). A runtime env
+    would cost every new worker about a second (no prestarted worker can take it). Workers
+    on a cluster's nodes do not inherit the driver's variables: `RAY_RUNTIME_ENV`."""
+    import os
+
+    if local and os.environ.get("PYTHONHASHSEED") is not None:
+        return None
+    return RAY_RUNTIME_ENV
+
+
 def init_local_ray(**options: Any) -> None:
     """A local Ray for a command of this project: no dashboard unless asked, and every
-    worker with the fixed hash seed and quiet loggers (`RAY_RUNTIME_ENV`)."""
+    worker with the driver's hash seed and quiet loggers (`worker_runtime_env`)."""
     import ray
 
     ray.init(
         address="local",
-        **{"include_dashboard": False, "runtime_env": RAY_RUNTIME_ENV, **options},
+        **{"include_dashboard": False, "runtime_env": worker_runtime_env(), **options},
     )
 
 
-def init_ray(namespace: str, num_cpus: int | None = None, dashboard: bool = False) -> str | None:
+def init_ray(
+    namespace: str,
+    num_cpus: int | None = None,
+    dashboard: bool = False,
+    meanwhile: tuple[str, ...] = (),
+) -> str | None:
     """Join the cluster RAY_ADDRESS names, else start a local Ray with `num_cpus` CPUs (all
     when None) and the dashboard if asked; every worker as `init_local_ray` sets it up.
-    The dashboard's URL, when there is one."""
+    The dashboard's URL, when there is one. `meanwhile`: modules the command needs next,
+    imported in a thread while Ray starts (its start mostly waits on the processes it
+    spawned: seconds a command no longer spends importing torch and RLlib after it)."""
     import os
 
     import ray
 
     quiet_ray_noise()
-    if os.environ.get("RAY_ADDRESS"):
-        ctx = ray.init(namespace=namespace, runtime_env=RAY_RUNTIME_ENV)
-    else:
-        ctx = ray.init(
-            address="local",
-            namespace=namespace,
-            num_cpus=num_cpus,
-            include_dashboard=dashboard,
-            runtime_env=RAY_RUNTIME_ENV,
-        )
+    with importing(meanwhile):
+        if os.environ.get("RAY_ADDRESS"):
+            ctx = ray.init(namespace=namespace, runtime_env=RAY_RUNTIME_ENV)
+        else:
+            ctx = ray.init(
+                address="local",
+                namespace=namespace,
+                num_cpus=num_cpus,
+                include_dashboard=dashboard,
+                runtime_env=worker_runtime_env(),
+            )
     url = getattr(ctx, "dashboard_url", None)
     return f"http://{url}" if url else None
+
+
+@contextmanager
+def importing(modules: tuple[str, ...]):
+    """Import `modules` in a thread for the duration of the block; the block's end waits
+    for them. A module that fails to import here is imported again (and raises) where it is
+    used."""
+    import importlib
+    import threading
+
+    def load() -> None:
+        for name in modules:
+            try:
+                importlib.import_module(name)
+            except Exception:  # noqa: BLE001 - raised again at the real import
+                return
+
+    thread = threading.Thread(target=load, name="hola_ray-imports", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        thread.join()
 
 
 def fixed_hash_seed(module: str, argv: list[str]) -> None:
@@ -139,8 +188,9 @@ def pin_threads(cpus) -> None:
 
 
 def quiet_ray_noise() -> None:
-    """Raise `NOISY_LOGGERS` to ERROR in this process (the driver, and as Ray's worker
-    setup hook every worker). Ray's C++ core still prints its own lines."""
+    """Raise `NOISY_LOGGERS` to ERROR in this process: the driver, every worker that
+    builds RLlib's parts (env runners, learners, trials), and as Ray's worker setup hook
+    every worker on a cluster. Ray's C++ core still prints its own lines."""
     import logging
 
     for name in NOISY_LOGGERS:

@@ -163,10 +163,11 @@ def finished(out: Path, config: RunConfig) -> bool:
 
 def init_ray(args: argparse.Namespace) -> None:
     """Join RAY_ADDRESS's cluster if set, else start a local Ray."""
-    from hola_ray.population.coordinator import NAMESPACE
+    from hola_ray.progress import NAMESPACE
     from hola_ray.progress import init_ray as start
 
-    url = start(NAMESPACE, args.num_cpus, dashboard=not args.no_dashboard)
+    trainer = ("hola_ray.methods.trainer",)  # what main imports next
+    url = start(NAMESPACE, args.num_cpus, dashboard=not args.no_dashboard, meanwhile=trainer)
     if url:
         print(f"Ray dashboard: {url}", flush=True)
 

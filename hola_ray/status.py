@@ -72,7 +72,8 @@ def live_view(run_dir: Path) -> dict[str, Any] | None:
     """The running coordinator's view, or None when no run of that name is live."""
     import ray
 
-    from hola_ray.population.coordinator import NAMESPACE, coordinator_name
+    from hola_ray.population.coordinator import coordinator_name
+    from hola_ray.progress import NAMESPACE
 
     ray.init(
         address=os.environ.get("RAY_ADDRESS", "auto"), namespace=NAMESPACE, log_to_driver=False

@@ -41,7 +41,7 @@ def ray_session():
     """One local Ray per test module (start-up and per-actor torch imports cost seconds)."""
     import ray
 
-    from hola_ray.progress import RAY_RUNTIME_ENV
+    from hola_ray.progress import worker_runtime_env
 
     ray.init(
         address="local",
@@ -49,7 +49,7 @@ def ray_session():
         include_dashboard=False,
         namespace="hola_ray_tests",
         log_to_driver=False,
-        runtime_env=RAY_RUNTIME_ENV,  # as the commands: workers share the hash seed
+        runtime_env=worker_runtime_env(),  # as the commands: workers share the hash seed
     )
     yield ray
     ray.shutdown()

@@ -42,7 +42,8 @@ def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(tm
     config = yaml.safe_load(SMOKE.read_text())
     config["base"] = str(ROOT / "configs" / "smoke.yaml")
     config["parallel"] = 1  # one trial at a time, so that one is done while the other runs
-    config["evaluation"]["seeds"] = [0]  # one evaluation seed is enough to check the files
+    # one evaluation seed and a few episodes are enough to check the files
+    config["evaluation"] |= {"seeds": [0], "episodes": 2, "cell_episodes": 1}
     path = tmp_path / "smoke.yaml"
     path.write_text(yaml.safe_dump(config))
     out = tmp_path / "exp"

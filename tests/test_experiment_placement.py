@@ -21,7 +21,7 @@ from ray.cluster_utils import Cluster
 
 from hola_ray.experiment import Experiment, Runner
 from hola_ray.population.rundir import RunDir
-from hola_ray.progress import RAY_RUNTIME_ENV
+from hola_ray.progress import worker_runtime_env
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -32,7 +32,8 @@ def two_nodes():
     for _ in range(2):
         cluster.add_node(num_cpus=2)
     cluster.wait_for_nodes()
-    ray.init(address=cluster.address, include_dashboard=False, runtime_env=RAY_RUNTIME_ENV)
+    # raylets on this machine inherit PYTHONHASHSEED as a local Ray's do (conftest sets it)
+    ray.init(address=cluster.address, include_dashboard=False, runtime_env=worker_runtime_env())
     # the stand-in trials below travel by value: Ray's workers cannot import a test module
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
     yield cluster

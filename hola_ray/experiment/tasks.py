@@ -58,6 +58,10 @@ def _run_trial(
     import tempfile
 
     import ray
+
+    from hola_ray.progress import quiet_ray_noise
+
+    quiet_ray_noise()  # before its trainer builds RLlib's algorithm
     from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
     from hola_ray.experiment.mirror import DirectorySync, Mirror, unpack

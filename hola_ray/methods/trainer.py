@@ -36,12 +36,13 @@ from hola_ray.methods.config import RunConfig
 from hola_ray.oracle import LEARNER, Oracle
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.population import shipped
-from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name, run_id
+from hola_ray.population.coordinator import Coordinator, coordinator_name, run_id
 from hola_ray.population.grapher import evaluate_edges, evaluate_edges_here
 from hola_ray.population.lock import RunLock
 from hola_ray.population.member import MemberPool
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import EdgeResult, edge_seed
+from hola_ray.progress import NAMESPACE
 
 _REPORTED = tuple((m.name, m.field) for m in TEAM)
 """(metric name in metrics.csv, its field in an edge result or a rollout summary)"""
@@ -116,7 +117,9 @@ class Trainer:
         oracle = None
         self._validation_teammates()  # a missing or refused validation set fails at once
         try:
-            last = ray.get(self.coord.last_completed.remote())
+            # read here, not asked of the coordinator: its actor starts (seconds of imports)
+            # while this driver pre-trains or builds its Oracle
+            last = self.run.last_completed()
             if last is None and method.self_play:
                 last = 0  # no population to pre-train: generation 1 is the first
             elif last is None:
@@ -134,6 +137,9 @@ class Trainer:
                     learner = self._starting_member()
                 if learner is not None:
                     oracle.set_trained_weights({LEARNER: learner})
+                training = self.run.load_training_state(last) if last >= 1 else None
+                if training is not None:  # Adam's moments and the schedules go on
+                    oracle.set_training_state(training)
                 for g in range(last + 1, self.config.generations + 1):
                     rows.append(self._generation(g, oracle))
                     self._saved(g)
@@ -286,8 +292,10 @@ class Trainer:
                 lambda nodes: ray.get(self.coord.member_states.remote(nodes)),
                 salt=g,
             )
+        oracle.reseed(g)  # generation g samples alike, resumed or not
         stats = oracle.train(c.oracle.env_steps, desc=f"gen {g} oracle", progress=self.progress)
         learner_state = oracle.weights([LEARNER])[LEARNER]
+        training = oracle.training_state()
         export = oracle.export_state(learner_state)
         oracle_s = time.perf_counter() - start
 
@@ -315,7 +323,7 @@ class Trainer:
         }
         row = ray.get(
             self.coord.commit.remote(
-                g, metrics, learner_state, decision, stats.iteration_log, export
+                g, metrics, learner_state, decision, stats.iteration_log, export, training
             )
         )
         # best.pt first: learner.json, written last, says the generation is wholly saved

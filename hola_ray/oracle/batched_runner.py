@@ -57,7 +57,7 @@ from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitPPOModule
 from hola_ray.policies.learned import MLPPolicy, export_from_rllib
-from hola_ray.progress import pin_threads
+from hola_ray.progress import pin_threads, quiet_ray_noise
 
 SKIP = MultiAgentEpisode.SKIP_ENV_TS_TAG
 
@@ -82,6 +82,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
     """A `MultiAgentEnvRunner` whose sub-environments are one `BatchedPursuit`."""
 
     def __init__(self, config, **kwargs) -> None:
+        quiet_ray_noise()  # before RLlib builds the modules (its deprecation warnings)
         super().__init__(config=config, **kwargs)
         if self.worker_index > 0:
             pin_threads(self.config.num_cpus_per_env_runner)
@@ -110,6 +111,27 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         )
 
     # ---- episodes -----------------------------------------------------------------------
+    def restart_episodes(self) -> None:
+        """Every sub-environment starts a new episode at the next sample (its partners drawn
+        from the φ and weights it holds then); nothing is sampled or counted now."""
+        self._needs_initial_reset = True
+
+    def reseed(self, salt: int) -> None:
+        """Draw from here on as a runner started with salt `salt` would: the episodes' seeds
+        and ids from (run seed, runner, salt), the actions from torch's generator seeded
+        likewise, and every sub-environment starting a new episode at the next sample. What
+        it samples then depends on the weights and φ it holds, not on what it sampled before,
+        so a run resumed at a generation samples as the undisturbed run did."""
+        if self.env is None:
+            return
+        seed = self.config.seed
+        words = [int(seed), int(self.worker_index), int(salt)] if seed is not None else None
+        self._rng = np.random.default_rng(np.random.SeedSequence(words))
+        if words is not None:
+            torch.manual_seed(int(np.random.SeedSequence([*words, 1]).generate_state(1)[0]))
+        self._module_ids = []  # seats are numbered again in the order episodes meet them
+        self._needs_initial_reset = True
+
     def _start(self, mask: np.ndarray) -> None:
         """Reset the sub-environments in mask with fresh seeds and start their episodes."""
         idx = np.flatnonzero(mask)

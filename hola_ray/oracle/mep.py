@@ -10,11 +10,13 @@ targets like any other reward.
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
 import torch
 from ray.rllib.algorithms.ppo.ppo import (
     LEARNER_RESULTS_KL_KEY,
@@ -27,6 +29,7 @@ from ray.rllib.connectors.learner.general_advantage_estimation import GeneralAdv
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.learner.learner import ENTROPY_KEY, POLICY_LOSS_KEY, VF_LOSS_KEY
 from ray.rllib.evaluation.postprocessing import Postprocessing
+from ray.rllib.utils.metrics import NUM_ENV_STEPS_SAMPLED_LIFETIME
 from ray.rllib.utils.torch_utils import explained_variance
 
 from hola_ray.oracle.minibatches import Minibatch, Minibatches
@@ -231,6 +234,9 @@ class OracleLearner(PPOTorchLearner):
         return total
 
     def after_gradient_based_update(self, *, timesteps) -> None:
+        if self._env_steps_before:  # a resumed run: its schedules go on where they were
+            steps = timesteps.get(NUM_ENV_STEPS_SAMPLED_LIFETIME, 0) + self._env_steps_before
+            timesteps = {**timesteps, NUM_ENV_STEPS_SAMPLED_LIFETIME: steps}
         self._log_trained_totals()
         for module_id, stats in self._last_stats.items():
             self.metrics.log_dict(stats(), key=module_id, window=1)
@@ -364,6 +370,30 @@ class OracleLearner(PPOTorchLearner):
             fixed_value_or_schedule=entropy_coeff, framework=self.framework, device=self._device
         )
 
+    def training_state(self, module_id: str) -> dict[str, Any]:
+        """What `module_id`'s training carries from one generation into the next besides its
+        weights: its optimizers' states (Adam's moments and step count) and its KL
+        coefficient (adapted when the KL penalty is on)."""
+        return {
+            "optimizers": {
+                name: copy.deepcopy(optim.state_dict())
+                for name, optim in self.get_optimizers_for_module(module_id)
+            },
+            "kl_coeff": float(self.curr_kl_coeffs_per_module[module_id]),
+        }
+
+    def set_training_state(self, module_id: str, state: dict[str, Any], env_steps: int) -> None:
+        """Take up `training_state`'s output, `env_steps` env steps into the schedules."""
+        for name, optim in self.get_optimizers_for_module(module_id):
+            optim.load_state_dict(state["optimizers"][name])
+        self.curr_kl_coeffs_per_module[module_id].data.fill_(state["kl_coeff"])
+        self._env_steps_before = int(env_steps)
+
+    def reseed(self, words: Sequence[int]) -> None:
+        """This process's global generators (the minibatches' shuffles) from `words`."""
+        np.random.seed(np.random.SeedSequence(list(words)).generate_state(4))  # noqa: NPY002
+        torch.manual_seed(int(np.random.SeedSequence([*words, 1]).generate_state(1)[0]))
+
     def hyperparameters(self, module_id: str) -> dict[str, float]:
         """The lr and entropy coefficient `module_id` trains with now."""
         (_, optim), *_ = self.get_optimizers_for_module(module_id)
@@ -385,14 +415,15 @@ class OracleLearner(PPOTorchLearner):
         )
 
     def build(self) -> None:
+        from hola_ray.progress import pin_threads, quiet_ray_noise
+
+        quiet_ray_noise()  # a remote learner's process: before RLlib builds its modules
         super().build()
         extra = self.config.learner_config_dict
         self._lean = extra.get("update", "lean") == "lean"
         if extra.get("overlap") and self.config.num_env_runners > 0:
             # the env runners sample on their own CPUs during the update (oracle/overlap.py):
             # the learner keeps to its own instead of spinning torch threads against them
-            from hola_ray.progress import pin_threads
-
             pin_threads(self.config.num_cpus_per_learner)
         """oracle.update: lean, or RLlib's own pipeline, iterator and loss"""
         self._last_stats: dict[str, Any] = {}
@@ -400,6 +431,8 @@ class OracleLearner(PPOTorchLearner):
         self._trained_rows: dict[str, int] = {}
         self._env_steps_trained = self._minibatches = 0
         """this update's trained rows per module, env steps and minibatches, so far"""
+        self._env_steps_before = 0
+        """env steps a resumed run had sampled before this Oracle (its schedules' offset)"""
         if self._learner_connector is None:
             return
         if self._lean:

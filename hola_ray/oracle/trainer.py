@@ -25,6 +25,7 @@ from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, NUM_ENV_STEPS_SAMPLED_LIFETIME
 from ray.tune.registry import register_env
 
 from hola_ray import interrupt
@@ -81,10 +82,12 @@ class _Pushed:
             runner.config.policy_mapping_fn.set_phi(phi, salt)
             for mid, state in weights.items():
                 runner.module[mid].set_state(state)
-            if getattr(runner, "env", None) is not None:
-                # Episodes under way keep the partners they started with: start new ones
-                # (one discarded vector step, no re-seeding) so the push takes effect now.
-                runner.sample(num_timesteps=1, force_reset=True)
+            # Episodes under way keep the partners they started with: start new ones so the
+            # push takes effect now (no re-seeding)
+            if hasattr(runner, "restart_episodes"):
+                runner.restart_episodes()  # at its next sample
+            elif getattr(runner, "env", None) is not None:
+                runner.sample(num_timesteps=1, force_reset=True)  # one discarded vector step
 
         group.foreach_env_runner(apply, local_env_runner=local, remote_worker_ids=remote_ids)
 
@@ -176,6 +179,7 @@ class Oracle:
         """seats the trained learner plays per env step: a learner_samples batch of
         `train_batch` transitions spans train_batch / seats env steps"""
         self._pushed = _Pushed(phi=self.mapping.phi, salt=0, weights={})
+        self._env_steps_before = 0  # a resumed run's env steps before this Oracle
         # registered per Oracle, not at import: Tune's registry lives in the Ray session,
         # and a process may start more than one (the test modules do)
         register_env(ENV_NAME, _make_env)
@@ -418,6 +422,41 @@ class Oracle:
         """Restore trained modules (on resume), learner group and env runners alike."""
         self.algo.learner_group.set_weights(dict(weights))
         _Pushed(self._pushed.phi, self._pushed.salt, dict(weights)).push(self.algo.env_runner_group)
+
+    def training_state(self) -> dict[str, Any]:
+        """What the learner's training carries into the next generation besides its weights
+        (`OracleLearner.training_state`), and the env steps sampled so far (where the lr and
+        entropy schedules are): a resumed run takes it up with `set_training_state`."""
+        first, *_ = [
+            r.get()
+            for r in self.algo.learner_group.foreach_learner(
+                lambda learner: learner.training_state(LEARNER)
+            )
+        ]
+        key = (ENV_RUNNER_RESULTS, NUM_ENV_STEPS_SAMPLED_LIFETIME)
+        steps = int(self.algo.metrics.peek(key, default=0))
+        return first | {"env_steps": self._env_steps_before + steps}
+
+    def set_training_state(self, state: Mapping[str, Any]) -> None:
+        """Take up a saved `training_state` (on resume), on every learner."""
+        self._env_steps_before = int(state["env_steps"])
+        self.algo.learner_group.foreach_learner(
+            lambda learner: learner.set_training_state(LEARNER, dict(state), state["env_steps"])
+        )
+
+    def reseed(self, salt: int) -> None:
+        """Sample and shuffle from here on as generation `salt` of this run does, whatever was
+        sampled before: every env runner restarts its episodes from generators of (seed,
+        runner, salt) (`BatchedEnvRunner.reseed`; RLlib's own runner is not reseeded), and
+        every learner's global generators (the minibatches' shuffles) from (seed, salt). A run
+        resumed after generation salt − 1 then trains generation salt as the undisturbed
+        run did."""
+        words = [int(self.seed), int(salt)]
+        self.algo.env_runner_group.foreach_env_runner(
+            lambda runner: runner.reseed(salt) if hasattr(runner, "reseed") else None,
+            local_env_runner=True,
+        )
+        self.algo.learner_group.foreach_learner(lambda learner: learner.reseed(words))
 
     def reset_learner(self, lr: float, entropy_coef: float) -> None:
         """Train the learner on with these hyperparameters and a fresh optimizer state."""

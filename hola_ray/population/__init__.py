@@ -2,11 +2,12 @@
 
 The decisions themselves live in the pure `Population` (no Ray)."""
 
-from hola_ray.population.coordinator import NAMESPACE, Coordinator, coordinator_name
+from hola_ray.population.coordinator import Coordinator, coordinator_name
 from hola_ray.population.grapher import evaluate_edges
 from hola_ray.population.member import Member, MemberPool, evaluate_team
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import Decision, EdgeResult, Population, edge_seed
+from hola_ray.progress import NAMESPACE
 
 __all__ = [
     "NAMESPACE",

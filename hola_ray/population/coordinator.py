@@ -22,9 +22,6 @@ from hola_ray.population.rules import Rules
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import Decision, EdgeResult, Population
 
-NAMESPACE = "hola_ray"
-"""Ray namespace of every named actor of hola_ray."""
-
 
 def run_id(run_dir: str) -> str:
     """A run's name on the cluster: its folder name and a hash of its full path, so that two
@@ -163,9 +160,11 @@ class Coordinator:
         decision: Decision | None = None,
         iterations: Sequence[Mapping[str, float]] = (),
         learner_export: Mapping[str, Any] | None = None,
+        learner_training: Mapping[str, Any] | None = None,
     ) -> dict[str, Any]:
-        """Persist generation `generation` (its metrics and the Oracle's per-iteration log)
-        and publish its metrics; returns the metrics row."""
+        """Persist generation `generation` (its metrics and the Oracle's per-iteration log,
+        the learner's weights, export and training state) and publish its metrics; returns
+        the metrics row."""
         start = time.perf_counter()
         for node, (export, state) in self._pending_exports.items():
             if node in self.population.slots:
@@ -193,7 +192,9 @@ class Coordinator:
         row["persist_s"] = round(time.perf_counter() - start, 4)
         files["metrics.json"] = row
         files["iterations.json"] = [dict(r) for r in iterations]
-        self.run.write_generation(generation, files, learner_state, learner_export)
+        self.run.write_generation(
+            generation, files, learner_state, learner_export, learner_training
+        )
         if self.population.members:
             self.run.write_population(
                 {

@@ -9,6 +9,9 @@
         hyfog.json  phi.json      the HyFoG and φ after the generation
         metrics.json              the generation's metrics
         learner.rllib.pt          the learner's RLlib state at the end of the generation
+        learner.pt                its plain-torch export (the folder plays on its own)
+        learner.training.pt       its Adam state, KL coefficient and env steps so far
+                                  (what `--resume` trains on with)
         iterations.json           one row per PPO iteration (spread, entropy, KL, return)
       metrics.csv                 one row per completed generation
       iterations.csv              one row per PPO iteration of every completed generation
@@ -44,6 +47,9 @@ import numpy as np
 import torch
 
 from hola_ray.policies.registry import GENERATION_EXPORT, GENERATION_STATE
+
+GENERATION_TRAINING = "learner.training.pt"
+"""in a generation folder: the learner's optimizer state and schedule position"""
 
 GEN_PREFIX = "gen_"
 
@@ -213,9 +219,11 @@ class RunDir:
         files: Mapping[str, Any],
         learner_state: Mapping[str, Any] | None,
         learner_export: Mapping[str, Any] | None = None,
+        learner_training: Mapping[str, Any] | None = None,
     ) -> Path:
         """Write generation g's folder atomically: JSON files from `files`, the learner's
-        RLlib state and its plain-torch export (which `load_policy` plays)."""
+        RLlib state, its plain-torch export (which `load_policy` plays) and its training
+        state (Adam's moments, what `--resume` trains on with)."""
         final = self.generation(g)
         if final.exists():
             raise FileExistsError(f"generation {g} is already complete in {final}")
@@ -228,6 +236,8 @@ class RunDir:
             torch.save(dict(learner_state), tmp / GENERATION_STATE)
         if learner_export is not None:
             torch.save(dict(learner_export), tmp / GENERATION_EXPORT)
+        if learner_training is not None:
+            torch.save(dict(learner_training), tmp / GENERATION_TRAINING)
         _fsync_dir(tmp)
         os.rename(tmp, final)
         _fsync_dir(self.generations)
@@ -262,6 +272,12 @@ class RunDir:
         if not path.exists():
             return None
         return load_state(path)
+
+    def load_training_state(self, g: int) -> dict[str, Any] | None:
+        """Generation g's learner training state (`Oracle.training_state`); None in a folder
+        written before generations kept it (a resume then starts a fresh optimizer)."""
+        path = self.generation(g) / GENERATION_TRAINING
+        return load_state(path) if path.exists() else None
 
     # ---- pre-training checkpoints ---------------------------------------------------------
     def save_pretrain(self, states: Mapping[str, Mapping[str, Any]], progress: Mapping) -> None:

@@ -145,7 +145,8 @@ def test_replay_mixes_learned_and_hand_written_policies_with_a_legend(learner_fi
     assert resolve(str(learner_file), PursuitConfig()).name == "mine"
     with pytest.raises(ValueError, match="unknown policy 'nobody'"):
         resolve("nobody", PursuitConfig())
-    replay(["--team", str(learner_file), "greedy", "apf-a-10", "--out", str(tmp_path / "r")])
+    team = ["--team", str(learner_file), "greedy", "apf-a-10"]
+    replay([*team, "--out", str(tmp_path / "r"), "--stride", "40"])  # a few frames
     assert sorted(p.suffix for p in (tmp_path / "r").iterdir()) == [".gif", ".png"]
 
 
@@ -155,7 +156,8 @@ def test_replay_plays_the_scenario_a_learner_was_trained_in(tmp_path, capsys):
     one = PursuitConfig(n_evaders=1)
     path = tmp_path / "one.pt"
     torch.save(random_export(one.obs_dim, hidden=(8,)) | {"scenario": one.to_dict()}, path)
-    assert replay(["--team", str(path), "vicsek", "greedy", "--out", str(tmp_path / "r")]) == 0
+    out = ["--out", str(tmp_path / "r"), "--stride", "40"]
+    assert replay(["--team", str(path), "vicsek", "greedy", *out]) == 0
     assert "'captures'" in capsys.readouterr().out
 
 

@@ -153,20 +153,15 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     tmp_path, capsys, monkeypatch
 ):
     """pretrain.until_success: the members are judged as teams of their own copies every
-    check_every env steps. Never competent (success 1.0 asked): they train to the cap and
-    metrics.csv says so; competent at the second check (the judge's figures replaced):
-    pre-training stops there, with half the cap's env steps."""
+    check_every env steps. Competent at the second check (the judge's figures replaced):
+    pre-training stops there, with half the cap's env steps. Stopped during its second
+    check, a build resumes from the members saved at the first; never competent (success
+    1.0 asked), it trains to the cap and metrics.csv says so."""
     from hola_ray.methods import base
 
     smoke = yaml.safe_load(SMOKE.read_text())
     until = {"env_steps": 4000, "check_every": 1000, "until_episodes": 6}
     never = until | {"env_steps": 2000, "until_success": 1.0}
-    said = train(smoke | {"generations": 0, "pretrain": never}, tmp_path / "capped", capsys)
-    assert said.count("pre-train: ") == 2 and "members as copies: success" in said
-    assert "(self-play; 2,000 env steps, not all competent)" in said
-    (row,) = RunDir(tmp_path / "capped").metrics_rows()
-    assert row["pretrain_competent"] == 0 and row["pretrain_env_steps"] >= 2000
-    assert 0 <= row["pretrain_members_success_min"] < 1.0
 
     # pretrain.alpha_until: the bonus for the first 1,000 env steps, then α 0 on the weights
     alphas: list[float] = []
@@ -218,13 +213,65 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     monkeypatch.setattr(base.Oracle, "set_trained_weights", lambda self, w: seated.append(dict(w)))
     said = train(smoke | {"generations": 0, "pretrain": never}, tmp_path / "stopped", capsys)
     assert f"pre-train: resumed after {progress['env_steps']:,} env steps" in said
-    assert said.count("members as copies") == 1  # only the check after the resume
+    assert said.count("members as copies: success") == 1  # only the check after the resume
     assert [sorted(w) for w in seated] == [sorted(states)]
     for mid, state in states.items():
         assert all((seated[0][mid][k] == v).all() for k, v in state.items())
     (row,) = run.metrics_rows()
     assert row["pretrain_resumed_at"] == progress["env_steps"]
-    assert row["pretrain_env_steps"] >= 2000
+    # never competent: trained to the cap, and metrics.csv says so
+    assert "(self-play; 2,000 env steps, not all competent)" in said
+    assert row["pretrain_competent"] == 0 and row["pretrain_env_steps"] >= 2000
+    assert 0 <= row["pretrain_members_success_min"] < 1.0
+
+
+def test_a_run_resumed_after_a_generation_trains_on_as_the_undisturbed_one(
+    tmp_path, capsys, mep_zero
+):
+    """Stopped after generation 1 and resumed, a run trains generation 2 as the undisturbed
+    run does, to the bit: each generation folder keeps the learner's Adam state, KL
+    coefficient and env steps (learner.training.pt, here with the lr decaying over them)
+    beside its weights, and each generation samples and shuffles from generators of (seed,
+    generation) (`Oracle.reseed`), whatever was sampled before."""
+    import torch
+
+    from hola_ray.population.rundir import metrics_differences
+
+    smoke = yaml.safe_load(SMOKE.read_text())
+    smoke["oracle"] |= {"lr_decay_env_steps": 5000, "lr_final": 1e-5}
+    whole, part = tmp_path / "whole", tmp_path / "part"
+    train(smoke | {"generations": 2}, whole, capsys, adopt_from=(mep_zero,))
+    train(smoke | {"generations": 1}, part, capsys, adopt_from=(mep_zero,))
+    said = train(smoke | {"generations": 2}, part, capsys)
+    assert "resuming after generation 1" in said
+    assert RunDir(part).completed() == [0, 1, 2]
+    assert metrics_differences(whole, part) == {}
+    a, b = RunDir(whole), RunDir(part)
+    assert_same(a.load_learner_state(2), b.load_learner_state(2))
+    training = b.load_training_state(2)
+    assert_same(a.load_training_state(2), training)
+    assert training["env_steps"] >= 2 * smoke["oracle"]["env_steps"]
+    [adam] = training["optimizers"].values()
+    assert adam["state"] and all(torch.is_tensor(v["exp_avg"]) for v in adam["state"].values())
+
+
+def assert_same(a, b, where: str = "") -> None:
+    """Two nested states (dicts, lists, tensors, arrays, numbers) equal to the bit."""
+    import numpy as np
+    import torch
+
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), where
+        for k in a:
+            assert_same(a[k], b[k], f"{where}/{k}")
+    elif isinstance(a, list | tuple):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            assert_same(x, y, f"{where}/{i}")
+    elif torch.is_tensor(a) or isinstance(a, np.ndarray):
+        assert np.array_equal(np.asarray(a), np.asarray(b)), where
+    else:
+        assert a == b, where
 
 
 def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(

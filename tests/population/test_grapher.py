@@ -38,17 +38,21 @@ def run(pool, workers, on_result=None):
 
 
 @pytest.fixture(scope="module")
-def baseline(ray_session):
-    pool = MemberPool(ENV.to_dict())
+def pool(ray_session):
+    """One member actor per node, shared by the tests (each actor's start costs seconds)."""
+    members = MemberPool(ENV.to_dict())
+    yield members
+    members.shutdown()
+
+
+@pytest.fixture(scope="module")
+def baseline(pool):
     results, stats = run(pool, workers=1)
-    pool.shutdown()
     return results
 
 
-def test_weights_do_not_depend_on_the_worker_count(ray_session, baseline):
-    pool = MemberPool(ENV.to_dict())
+def test_weights_do_not_depend_on_the_worker_count(pool, baseline):
     results, stats = run(pool, workers=2)
-    pool.shutdown()
     assert results == baseline and stats.retries == 0
     assert [r.nodes for r in results] == EDGES
     assert len({r.team_return for r in results}) > 1  # the members really differ
@@ -63,8 +67,7 @@ def test_the_driver_plays_the_same_weights_as_the_member_actors(baseline):
     assert (stats.edges, stats.episodes, stats.retries) == (len(EDGES), len(EDGES) * EPISODES, 0)
 
 
-def test_killing_members_mid_grapher_gives_the_same_weights(ray_session, baseline):
-    pool = MemberPool(ENV.to_dict())
+def test_killing_members_mid_grapher_gives_the_same_weights(pool, baseline):
     actors = pool.ensure(EXPORTS)
     killed = []
 
@@ -80,7 +83,6 @@ def test_killing_members_mid_grapher_gives_the_same_weights(ray_session, baselin
     # The pool replaces dead members for the next generation.
     fresh = pool.ensure(EXPORTS)
     assert ray.get([fresh[n].ping.remote() for n in NODES]) == list(NODES)
-    pool.shutdown()
 
 
 def test_a_hyperedge_is_a_set_of_members():
