@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -58,14 +60,18 @@ def ray_session():
 ROOT = Path(__file__).resolve().parent.parent
 
 
-@pytest.fixture(scope="session")
-def smoke_run(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
-    """`python -m hola_ray.run` on configs/smoke.yaml, once per session: its run directory
-    and the finished process. Two tests read it: the run directory's contents, and the
-    experiment's hola-s0 trial (same config and seed, run as a Ray task) matching it.
-    It weighs its hyperedges on member actors, where the smoke config plays them in the
-    driver, so that match also shows the two Grapher paths give the same run."""
-    out = tmp_path_factory.mktemp("smoke") / "smoke"
+_SMOKE: dict[str, object] = {}
+"""The smoke run started in the background: its folder and process (`smoke_run`)."""
+
+
+def pytest_collection_finish(session) -> None:
+    """When a selected test asks for `smoke_run`, start it now, in the background: the
+    suite's first modules play in this one process and leave a core idle, which the run
+    takes instead of making its first test wait for it."""
+    if not any("smoke_run" in getattr(item, "fixturenames", ()) for item in session.items):
+        return
+    folder = Path(tempfile.mkdtemp(prefix="hola_ray-smoke-"))
+    out = folder / "smoke"
     cmd = [
         sys.executable,
         "-m",
@@ -79,8 +85,38 @@ def smoke_run(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
         "--no-dashboard",
         "--quiet",
     ]
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT)
-    return out, done
+    with open(folder / "stdout", "w") as stdout, open(folder / "stderr", "w") as stderr:
+        process = subprocess.Popen(cmd, stdout=stdout, stderr=stderr, text=True, cwd=ROOT)
+    _SMOKE.update(folder=folder, out=out, cmd=cmd, process=process)
+
+
+def pytest_sessionfinish(session) -> None:
+    process = _SMOKE.get("process")
+    if process is not None:
+        if process.poll() is None:  # the session stopped before it ended
+            process.kill()
+            process.wait()
+        shutil.rmtree(_SMOKE["folder"], ignore_errors=True)
+
+
+@pytest.fixture(scope="session")
+def smoke_run() -> tuple[Path, subprocess.CompletedProcess]:
+    """`python -m hola_ray.run` on configs/smoke.yaml, once per session (started when the
+    tests were collected): its run directory and the finished process. Tests read and copy
+    the folder, never change it. Two of them: the run directory's contents, and the
+    experiment's hola-s0 trial (same config and seed, run as a Ray task) matching it.
+    It weighs its hyperedges on member actors, where the smoke config plays them in the
+    driver, so that match also shows the two Grapher paths give the same run."""
+    process = _SMOKE["process"]
+    process.wait(timeout=600)
+    folder = _SMOKE["folder"]
+    done = subprocess.CompletedProcess(
+        _SMOKE["cmd"],
+        process.returncode,
+        (folder / "stdout").read_text(),
+        (folder / "stderr").read_text(),
+    )
+    return _SMOKE["out"], done
 
 
 class _Straight:
