@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import sys
 import time
-from contextlib import contextmanager
 from typing import Any
 
 from tqdm.auto import tqdm
@@ -107,54 +106,27 @@ def init_ray(
     namespace: str,
     num_cpus: int | None = None,
     dashboard: bool = False,
-    meanwhile: tuple[str, ...] = (),
 ) -> str | None:
     """Join the cluster RAY_ADDRESS names, else start a local Ray with `num_cpus` CPUs (all
     when None) and the dashboard if asked; every worker as `init_local_ray` sets it up.
-    The dashboard's URL, when there is one. `meanwhile`: modules the command needs next,
-    imported in a thread while Ray starts (its start mostly waits on the processes it
-    spawned: seconds a command no longer spends importing torch and RLlib after it)."""
+    The dashboard's URL, when there is one."""
     import os
 
     import ray
 
     quiet_ray_noise()
-    with importing(meanwhile):
-        if os.environ.get("RAY_ADDRESS"):
-            ctx = ray.init(namespace=namespace, runtime_env=RAY_RUNTIME_ENV)
-        else:
-            ctx = ray.init(
-                address="local",
-                namespace=namespace,
-                num_cpus=num_cpus,
-                include_dashboard=dashboard,
-                runtime_env=worker_runtime_env(),
-            )
+    if os.environ.get("RAY_ADDRESS"):
+        ctx = ray.init(namespace=namespace, runtime_env=RAY_RUNTIME_ENV)
+    else:
+        ctx = ray.init(
+            address="local",
+            namespace=namespace,
+            num_cpus=num_cpus,
+            include_dashboard=dashboard,
+            runtime_env=worker_runtime_env(),
+        )
     url = getattr(ctx, "dashboard_url", None)
     return f"http://{url}" if url else None
-
-
-@contextmanager
-def importing(modules: tuple[str, ...]):
-    """Import `modules` in a thread for the duration of the block; the block's end waits
-    for them. A module that fails to import here is imported again (and raises) where it is
-    used."""
-    import importlib
-    import threading
-
-    def load() -> None:
-        for name in modules:
-            try:
-                importlib.import_module(name)
-            except Exception:  # noqa: BLE001 - raised again at the real import
-                return
-
-    thread = threading.Thread(target=load, name="hola_ray-imports", daemon=True)
-    thread.start()
-    try:
-        yield
-    finally:
-        thread.join()
 
 
 def fixed_hash_seed(module: str, argv: list[str]) -> None:
@@ -168,6 +140,14 @@ def fixed_hash_seed(module: str, argv: list[str]) -> None:
         return
     env = {**os.environ, "PYTHONHASHSEED": "0"}
     os.execve(sys.executable, [sys.executable, "-m", module, *argv], env)
+
+
+def seed_torch(words) -> None:
+    """This process's global torch generator from a list of integers (a SeedSequence's)."""
+    import numpy as np
+    import torch
+
+    torch.manual_seed(int(np.random.SeedSequence([*words, 1]).generate_state(1)[0]))
 
 
 def pin_threads(cpus) -> None:

@@ -166,8 +166,7 @@ def init_ray(args: argparse.Namespace) -> None:
     from hola_ray.progress import NAMESPACE
     from hola_ray.progress import init_ray as start
 
-    trainer = ("hola_ray.methods.trainer",)  # what main imports next
-    url = start(NAMESPACE, args.num_cpus, dashboard=not args.no_dashboard, meanwhile=trainer)
+    url = start(NAMESPACE, args.num_cpus, dashboard=not args.no_dashboard)
     if url:
         print(f"Ray dashboard: {url}", flush=True)
 

@@ -70,8 +70,7 @@ def main(argv: list[str] | None = None) -> int:
         (out / CONFIG_NAME).write_text(yaml.safe_dump(saved, sort_keys=False))
     from hola_ray.progress import NAMESPACE, init_ray
 
-    # the Runner names its trials' coordinators (hola_ray.population) next
-    init_ray(NAMESPACE, args.num_cpus, meanwhile=("hola_ray.population",))
+    init_ray(NAMESPACE, args.num_cpus)
     trials = experiment.trials()
     print(
         f"experiment in {out}: {len(experiment.methods)} method(s) × {len(experiment.seeds)} "

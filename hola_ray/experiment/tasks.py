@@ -58,15 +58,13 @@ def _run_trial(
     import tempfile
 
     import ray
-
-    from hola_ray.progress import quiet_ray_noise
-
-    quiet_ray_noise()  # before its trainer builds RLlib's algorithm
     from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
     from hola_ray.experiment.mirror import DirectorySync, Mirror, unpack
     from hola_ray.methods.trainer import Trainer
+    from hola_ray.progress import quiet_ray_noise
 
+    quiet_ray_noise()  # before its trainer builds RLlib's algorithm
     # Not `pin_threads`: the learner's torch threads set how its gradients are summed, and
     # a trial must train as `python -m hola_ray.run` of its config does (a test compares
     # them); pinned to its one CPU it read returns 1e-8 apart.

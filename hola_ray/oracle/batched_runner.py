@@ -57,7 +57,7 @@ from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitPPOModule
 from hola_ray.policies.learned import MLPPolicy, export_from_rllib
-from hola_ray.progress import pin_threads, quiet_ray_noise
+from hola_ray.progress import pin_threads, quiet_ray_noise, seed_torch
 
 SKIP = MultiAgentEpisode.SKIP_ENV_TS_TAG
 
@@ -128,7 +128,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         words = [int(seed), int(self.worker_index), int(salt)] if seed is not None else None
         self._rng = np.random.default_rng(np.random.SeedSequence(words))
         if words is not None:
-            torch.manual_seed(int(np.random.SeedSequence([*words, 1]).generate_state(1)[0]))
+            seed_torch(words)
         self._module_ids = []  # seats are numbered again in the order episodes meet them
         self._needs_initial_reset = True
 

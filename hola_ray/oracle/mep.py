@@ -391,8 +391,10 @@ class OracleLearner(PPOTorchLearner):
 
     def reseed(self, words: Sequence[int]) -> None:
         """This process's global generators (the minibatches' shuffles) from `words`."""
+        from hola_ray.progress import seed_torch
+
         np.random.seed(np.random.SeedSequence(list(words)).generate_state(4))  # noqa: NPY002
-        torch.manual_seed(int(np.random.SeedSequence([*words, 1]).generate_state(1)[0]))
+        seed_torch(words)
 
     def hyperparameters(self, module_id: str) -> dict[str, float]:
         """The lr and entropy coefficient `module_id` trains with now."""
