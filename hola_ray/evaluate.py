@@ -25,7 +25,6 @@ that cannot be made or acts wrongly) is one line on stderr and exit code 2.
 from __future__ import annotations
 
 import json
-import sys
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -148,5 +147,12 @@ def _rounded(values: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
+def script() -> None:
+    """`hola-eval` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
+    from hola_ray.progress import leave
+
+    leave(main())
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    script()

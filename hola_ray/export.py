@@ -16,7 +16,6 @@ Needs the deploy extra: pip install -e '.[deploy]'.
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -131,5 +130,12 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def script() -> None:
+    """`hola-export` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
+    from hola_ray.progress import leave
+
+    leave(main())
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    script()

@@ -24,7 +24,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -195,5 +194,12 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def script() -> None:
+    """`hola-fly` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
+    from hola_ray.progress import leave
+
+    leave(main())
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    script()

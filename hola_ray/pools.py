@@ -185,10 +185,10 @@ def script() -> None:
     """`hola-pools` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
     hola_ray.pools` runs it (`hola_ray.progress.fixed_hash_seed`)."""
 
-    from hola_ray.progress import fixed_hash_seed
+    from hola_ray.progress import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.pools", sys.argv[1:])
-    sys.exit(main())
+    leave(main())
 
 
 if __name__ == "__main__":

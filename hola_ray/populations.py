@@ -174,10 +174,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def script() -> None:
     """`hola-populations` (`[project.scripts]`): `main` under the fixed hash seed."""
-    from hola_ray.progress import fixed_hash_seed
+    from hola_ray.progress import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.populations", sys.argv[1:])
-    sys.exit(main())
+    leave(main())
 
 
 if __name__ == "__main__":

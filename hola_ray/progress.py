@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import Any
+from typing import Any, NoReturn
 
 from tqdm.auto import tqdm
 
@@ -140,6 +140,16 @@ def fixed_hash_seed(module: str, argv: list[str]) -> None:
         return
     env = {**os.environ, "PYTHONHASHSEED": "0"}
     os.execve(sys.executable, [sys.executable, "-m", module, *argv], env)
+
+
+def leave(code: int | None) -> NoReturn:
+    """`sys.exit(code)` at a command's end, every live object frozen first: the
+    interpreter's last collection would walk the half million that torch, RLlib and Ray made,
+    2 s at each exit of `hola_ray.run` (measured; 0.3 s frozen)."""
+    import gc
+
+    gc.freeze()
+    sys.exit(code)
 
 
 def seed_torch(words) -> None:

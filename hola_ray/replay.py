@@ -13,7 +13,6 @@ collision marks, a legend naming each seat's policy) and prints the episode's me
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from hola_ray.cli import OneLineParser, fail
@@ -108,5 +107,12 @@ def _team(args) -> tuple[PursuitConfig, list[Policy]]:
     return config, [resolve(name, config) for name in _names(args, config)]
 
 
+def script() -> None:
+    """`hola-replay` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
+    from hola_ray.progress import leave
+
+    leave(main())
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    script()

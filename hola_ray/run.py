@@ -258,10 +258,10 @@ def interrupted(out: Path) -> int:
 def script() -> None:
     """`hola-run` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
     hola_ray.run` runs it (`hola_ray.progress.fixed_hash_seed`)."""
-    from hola_ray.progress import fixed_hash_seed
+    from hola_ray.progress import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.run", sys.argv[1:])
-    sys.exit(main())
+    leave(main())
 
 
 if __name__ == "__main__":

@@ -268,5 +268,12 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def script() -> None:
+    """`hola-status` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
+    from hola_ray.progress import leave
+
+    leave(main())
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    script()

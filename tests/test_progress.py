@@ -62,3 +62,22 @@ def test_a_command_reruns_itself_under_the_fixed_hash_seed(tmp_path):
 
     assert experiment.Runner.__module__ == "hola_ray.experiment.runner"
     assert all(getattr(experiment, name) is not None for name in experiment.__all__)
+
+
+def test_a_command_leaves_with_its_code_and_every_object_frozen():
+    """`leave(code)` exits with the command's code, the live objects moved out of the
+    collector's reach (the interpreter's last collection then skips them)."""
+    import gc
+
+    import pytest
+
+    from hola_ray.progress import leave
+
+    assert gc.get_freeze_count() == 0
+    try:
+        with pytest.raises(SystemExit) as exit_:
+            leave(3)
+        assert exit_.value.code == 3
+        assert gc.get_freeze_count() > 1000
+    finally:
+        gc.unfreeze()

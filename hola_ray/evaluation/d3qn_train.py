@@ -466,10 +466,11 @@ def script() -> None:
     hola_ray.evaluation.d3qn_train` runs it (`hola_ray.progress.fixed_hash_seed`)."""
     import sys
 
-    from hola_ray.progress import fixed_hash_seed
+    from hola_ray.progress import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.evaluation.d3qn_train", sys.argv[1:])
     main()
+    leave(0)
 
 
 if __name__ == "__main__":

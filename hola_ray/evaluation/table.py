@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import sys
 from collections.abc import Sequence
 
 import numpy as np
@@ -176,5 +175,12 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def script() -> None:
+    """`hola-table` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
+    from hola_ray.progress import leave
+
+    leave(main())
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    script()

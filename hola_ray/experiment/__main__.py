@@ -5,9 +5,9 @@ imported."""
 import sys
 
 if __name__ == "__main__":
-    from hola_ray.progress import fixed_hash_seed
+    from hola_ray.progress import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.experiment", sys.argv[1:])
     from hola_ray.experiment.command import main
 
-    sys.exit(main())
+    leave(main())

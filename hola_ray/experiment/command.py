@@ -88,10 +88,10 @@ def main(argv: list[str] | None = None) -> int:
 def script() -> None:
     """`hola-experiment` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
     hola_ray.experiment` runs it (`hola_ray.progress.fixed_hash_seed`)."""
-    from hola_ray.progress import fixed_hash_seed
+    from hola_ray.progress import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.experiment", sys.argv[1:])
-    sys.exit(main())
+    leave(main())
 
 
 if __name__ == "__main__":
