@@ -92,27 +92,79 @@ _WARM = (
 )
 """Every numba kernel of the simulator and the hand-written policies, compiled and cached."""
 
-_SMOKE: dict[str, object] = {}
-"""The background work: its folder, the warm-up, then the smoke run (`smoke_run`)."""
-_BACKGROUND = threading.Lock()
+
+class Background:
+    """Work that only drives commands (subprocesses) and reads their files, started once
+    the tests are collected and run one job after another in a thread. Most of the suite
+    plays in this one process and leaves a core idle much of the time (Ray modules too: half
+    their time); the background takes it. A test marked
+    `@pytest.mark.background.with_args(job)` gets the job's result (or its error) from the
+    fixture: `background(job)`. The jobs of the
+    selected tests run in the order the tests were collected, after the kernels are
+    compiled (`_WARM`) and the smoke run (`smoke_run`) made. A job is called as
+    `job(background, folder)`: it starts its commands with `background.popen`, so that a
+    session that stops kills them, and may take an earlier job's result."""
+
+    def __init__(self, jobs: list) -> None:
+        import concurrent.futures
+
+        self.root = Path(tempfile.mkdtemp(prefix="hola_ray-background-"))
+        self.processes: list[subprocess.Popen] = []
+        self.lock = threading.Lock()
+        self.ended = False
+        self.pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="background")
+        self.futures = {job: self.pool.submit(self._run, job) for job in jobs}
+
+    def _run(self, job):
+        folder = self.root / job.__name__
+        folder.mkdir()
+        return job(self, folder)
+
+    def __call__(self, job):
+        """The result of `job` (a job function, or its name), once it ended."""
+        if isinstance(job, str):
+            [job] = [j for j in self.futures if j.__name__ == job]
+        return self.futures[job].result()
+
+    def popen(self, args: list[str], **options) -> subprocess.Popen:
+        """`subprocess.Popen` in its own session (a kill takes its local Ray with it), in the
+        project's root; refused once the session ended."""
+        with self.lock:
+            if self.ended:
+                raise RuntimeError("the test session ended")
+            options.setdefault("cwd", ROOT)
+            process = subprocess.Popen(args, start_new_session=True, **options)
+            self.processes.append(process)
+            return process
+
+    def stop(self) -> None:
+        import signal
+
+        with self.lock:
+            self.ended = True
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        for process in self.processes:
+            if process.poll() is None:  # the session stopped before it ended
+                try:
+                    os.killpg(process.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+        self.pool.shutdown(wait=True)
+        shutil.rmtree(self.root, ignore_errors=True)
 
 
-def pytest_collection_modifyitems(session, config, items) -> None:
-    def steps_no_simulator(item) -> bool:
-        path = item.path.relative_to(ROOT).as_posix()
-        return path.startswith(NO_SIMULATOR)
-
-    items.sort(key=lambda item: not steps_no_simulator(item))  # stable: otherwise as found
+_BACKGROUND: list[Background] = []
 
 
-def pytest_collection_finish(session) -> None:
-    """When a selected test asks for `smoke_run`, start the background work now: the kernels
-    compiled (`_WARM`), then the smoke run. The suite's first modules play in this one
-    process and leave a core idle, which the background takes instead of making the first
-    tests wait for it."""
-    if not any("smoke_run" in getattr(item, "fixturenames", ()) for item in session.items):
-        return
-    folder = Path(tempfile.mkdtemp(prefix="hola_ray-smoke-"))
+def warm_kernels(background: Background, folder: Path) -> int:
+    with open(folder / "log", "w") as log:
+        warm = background.popen([sys.executable, "-c", _WARM], stdout=log, stderr=log)
+    return warm.wait()
+
+
+def smoke(background: Background, folder: Path) -> tuple[Path, subprocess.CompletedProcess]:
+    """`python -m hola_ray.run` on configs/smoke.yaml: its run directory and the finished
+    process."""
     out = folder / "smoke"
     cmd = [
         sys.executable,
@@ -127,62 +179,58 @@ def pytest_collection_finish(session) -> None:
         "--no-dashboard",
         "--quiet",
     ]
-    _SMOKE.update(folder=folder, out=out, cmd=cmd)
+    process = background.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    stdout, stderr = process.communicate(timeout=600)
+    return out, subprocess.CompletedProcess(cmd, process.returncode, stdout, stderr)
 
-    def start(name: str, args: list[str], log: str):
-        """A background process, unless the session already ended (then None)."""
-        with (
-            _BACKGROUND,
-            open(folder / f"{log}.out", "w") as out,
-            open(folder / f"{log}.err", "w") as err,
-        ):
-            if not _SMOKE.get("ended"):
-                _SMOKE[name] = subprocess.Popen(args, stdout=out, stderr=err, text=True, cwd=ROOT)
-            return _SMOKE.get(name)
 
-    def background() -> None:
-        warm = start("warm", [sys.executable, "-c", _WARM], "warm")
-        if warm is not None:
-            warm.wait()
-            start("process", cmd, "smoke")
+def pytest_configure(config) -> None:
+    config.addinivalue_line(
+        "markers", "background(job): job(background, folder) runs in the background (`Background`)"
+    )
 
-    _SMOKE["thread"] = threading.Thread(target=background, daemon=True)
-    _SMOKE["thread"].start()
+
+def pytest_collection_modifyitems(session, config, items) -> None:
+    def steps_no_simulator(item) -> bool:
+        path = item.path.relative_to(ROOT).as_posix()
+        return path.startswith(NO_SIMULATOR)
+
+    items.sort(key=lambda item: not steps_no_simulator(item))  # stable: otherwise as found
+
+
+def pytest_collection_finish(session) -> None:
+    jobs: list = []
+    for item in session.items:
+        if "smoke_run" in getattr(item, "fixturenames", ()) and smoke not in jobs:
+            jobs.append(smoke)
+        for mark in item.iter_markers("background"):
+            if mark.args[0] not in jobs:
+                jobs.append(mark.args[0])
+    if jobs:
+        jobs.sort(key=lambda job: job is not smoke)  # first: other jobs may take it
+        _BACKGROUND.append(Background([warm_kernels, *jobs]))
 
 
 def pytest_sessionfinish(session) -> None:
-    if "thread" not in _SMOKE:
-        return
-    with _BACKGROUND:
-        _SMOKE["ended"] = True  # nothing more starts
-    for name in ("warm", "process"):
-        process = _SMOKE.get(name)
-        if process is not None and process.poll() is None:  # the session stopped first
-            process.kill()
-            process.wait()
-    _SMOKE["thread"].join()
-    shutil.rmtree(_SMOKE["folder"], ignore_errors=True)
+    while _BACKGROUND:
+        _BACKGROUND.pop().stop()
+
+
+@pytest.fixture(scope="session")
+def background() -> Background:
+    """`background(job)`: the result of a job a marked test asked for (`Background`)."""
+    return _BACKGROUND[0]
 
 
 @pytest.fixture(scope="session")
 def smoke_run() -> tuple[Path, subprocess.CompletedProcess]:
-    """`python -m hola_ray.run` on configs/smoke.yaml, once per session (started in the
-    background once the tests were collected): its run directory and the finished process.
-    Tests read and copy the folder, never change it. Two of them: the run directory's
-    contents, and the experiment's hola-s0 trial (same config and seed, run as a Ray task)
-    matching it. It weighs its hyperedges on member actors, where the smoke config plays
-    them in the driver, so that match also shows the two Grapher paths give the same run."""
-    _SMOKE["thread"].join()
-    process = _SMOKE["process"]
-    process.wait(timeout=600)
-    folder = _SMOKE["folder"]
-    done = subprocess.CompletedProcess(
-        _SMOKE["cmd"],
-        process.returncode,
-        (folder / "smoke.out").read_text(),
-        (folder / "smoke.err").read_text(),
-    )
-    return _SMOKE["out"], done
+    """`python -m hola_ray.run` on configs/smoke.yaml, once per session, made in the
+    background (`Background`): its run directory and the finished process. Tests read and
+    copy the folder, never change it. Two of them: the run directory's contents, and the
+    experiment's hola-s0 trial (same config and seed, run as a Ray task) matching it. It
+    weighs its hyperedges on member actors, where the smoke config plays them in the
+    driver, so that match also shows the two Grapher paths give the same run."""
+    return _BACKGROUND[0](smoke)
 
 
 class _Straight:

@@ -38,38 +38,51 @@ def digest(folder: Path) -> str:
     return h.hexdigest()
 
 
-def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(tmp_path, smoke_run):
+def killed_experiment(background, folder: Path) -> dict:
+    """The commands of the test below, run in the background (`Background`): the smoke
+    experiment one trial at a time, killed by SIGKILL once its first trial is done, then
+    resumed."""
     config = yaml.safe_load(SMOKE.read_text())
     config["base"] = str(ROOT / "configs" / "smoke.yaml")
     config["parallel"] = 1  # one trial at a time, so that one is done while the other runs
     # one evaluation seed and a few episodes are enough to check the files
     config["evaluation"] |= {"seeds": [0], "episodes": 2, "cell_episodes": 1}
-    path = tmp_path / "smoke.yaml"
+    path = folder / "smoke.yaml"
     path.write_text(yaml.safe_dump(config))
-    out = tmp_path / "exp"
+    out = folder / "exp"
+    seen: dict = {"out": out}
     cmd = [sys.executable, "-m", "hola_ray.experiment", "--config", str(path), "--out", str(out)]
-    driver = subprocess.Popen(
-        cmd,
-        cwd=ROOT,
-        start_new_session=True,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
-    )
+    driver = background.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     first = out / "trials" / "hola-s0"
     # the runner says "hola-s0: done in …" once the trial's task returned: wait for that line
-    for line in driver.stdout:
-        if line.startswith("hola-s0: done in"):
-            break
-    else:
-        raise AssertionError("the experiment ended before its first trial was done")
-    assert trial_state(first, 1)[0] == "done"
+    seen["first done said"] = any(line.startswith("hola-s0: done in") for line in driver.stdout)
+    seen["states"] = (trial_state(first, 1)[0], trial_state(out / "trials" / "sp-s0", 1)[0])
     os.killpg(driver.pid, signal.SIGKILL)  # the driver and the local Ray it started
     driver.wait()
-    assert trial_state(out / "trials" / "sp-s0", 1)[0] != "done"
-    kept = digest(first)
+    seen["kept"] = digest(first)
+    cmd = [sys.executable, "-m", "hola_ray.experiment", "--resume", str(out)]
+    done = background.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    stdout, stderr = done.communicate(timeout=600)
+    seen["resumed"] = subprocess.CompletedProcess(cmd, done.returncode, stdout, stderr)
+    return seen
 
-    done = experiment("--resume", str(out))
+
+@pytest.mark.background.with_args(killed_experiment)
+def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(
+    background, smoke_run
+):
+    """The smoke experiment killed by SIGKILL once its first trial is done: --resume does
+    not rerun that trial, which matches `python -m hola_ray.run` of its config, and
+    results.json holds every method × seed × pool. (Its commands ran in the background:
+    `killed_experiment`.)"""
+    seen = background(killed_experiment)
+    out = seen["out"]
+    first = out / "trials" / "hola-s0"
+    assert seen["first done said"], "the experiment ended before its first trial was done"
+    assert seen["states"][0] == "done" and seen["states"][1] != "done", seen["states"]
+    kept = seen["kept"]
+
+    done = seen["resumed"]
     assert done.returncode == 0, done.stderr[-3000:]
     assert "hola-s0: done (generation 1), not rerun" in done.stdout
     assert digest(first) == kept  # the finished trial was not touched

@@ -204,56 +204,72 @@ def _digest(run_dir: RunDir, g: int) -> str:
     return h.hexdigest()
 
 
-def test_sigkill_then_ctrl_c_then_resume_loses_nothing(tmp_path):
-    """SIGKILL after generation 1 (nothing gets to clean up), a resume interrupted by
-    Ctrl-C while it trains generation 2 (one line, exit 130), a last resume: every
-    completed generation kept untouched, the run finished; then it says so, and
-    --generations N extends it."""
+def interrupted_run(background, folder: Path) -> dict:
+    """The commands of the test below, run in the background (`Background`): a run killed
+    by SIGKILL once it said generation 1 was saved, resumed and interrupted by Ctrl-C
+    while it trains generation 2, resumed to its end, then resumed once more. What each
+    said and left on disk on the way."""
     config = yaml.safe_load(SMOKE.read_text())
     config["generations"] = 2
     config["oracle"]["env_steps"] = 2000
-    path = tmp_path / "resume.yaml"
+    path = folder / "resume.yaml"
     path.write_text(yaml.safe_dump(config))
-    out = tmp_path / "run"
+    out = folder / "run"
     r = RunDir(out)
+    seen: dict = {"out": out}
 
     def start(*args: str) -> subprocess.Popen:
         cmd = [sys.executable, "-m", "hola_ray.run", *args, "--no-dashboard", "--quiet"]
-        return subprocess.Popen(
-            cmd,
-            cwd=ROOT,
-            start_new_session=True,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        pipes = {"stdout": subprocess.PIPE, "stderr": subprocess.PIPE, "text": True}
+        return background.popen(cmd, **pipes)
 
-    said: list[str] = []
-
-    def wait_for(driver: subprocess.Popen, start: str) -> None:
-        """Read the driver's lines until one starts with `start`: an event, not a guess at
-        how long it takes."""
+    def wait_for(driver: subprocess.Popen, start: str) -> bool:
+        """Read the driver's lines until one starts with `start` (True), or its end: an
+        event, not a guess at how long it takes."""
         for line in driver.stdout:
-            said.append(line)
+            seen.setdefault("said", []).append(line)
             if line.startswith(start):
-                return
-        raise AssertionError(f"the run ended before {start!r}: {''.join(said)[-2000:]}")
+                return True
+        return False
 
     driver = start("--config", str(path), "--out", str(out))
-    wait_for(driver, "gen 1:")  # printed once generation 1's files are written
-    assert 1 in r.completed()
+    seen["gen 1 said"] = wait_for(driver, "gen 1:")  # once generation 1's files are written
+    seen["then saved"] = r.completed()
     os.killpg(driver.pid, signal.SIGKILL)  # the driver and the local Ray it started
     driver.communicate()
-    before = r.completed()
-    assert before == [0, 1], before
-    digests = {g: _digest(r, g) for g in before}
+    seen["killed"] = r.completed()
+    seen["digests"] = {g: _digest(r, g) for g in seen["killed"]}
 
     driver = start("--resume", str(out))
-    wait_for(driver, "resuming after generation 1")  # then it trains generation 2
+    seen["resuming said"] = wait_for(driver, "resuming after generation 1")  # trains gen 2
     os.killpg(driver.pid, signal.SIGINT)  # what Ctrl-C in a terminal does
     _, err = driver.communicate(timeout=120)
-    assert driver.returncode == 130, err[-3000:]
-    assert r.completed() == [0, 1]  # generation 2 was in progress
+    seen["interrupted"] = (driver.returncode, err, r.completed())
+
+    for step in ("resumed", "again"):
+        done = start("--resume", str(out))
+        stdout, stderr = done.communicate(timeout=300)
+        seen[step] = subprocess.CompletedProcess(done.args, done.returncode, stdout, stderr)
+    return seen
+
+
+@pytest.mark.background.with_args(interrupted_run)
+def test_sigkill_then_ctrl_c_then_resume_loses_nothing(background):
+    """SIGKILL after generation 1 (nothing gets to clean up), a resume interrupted by
+    Ctrl-C while it trains generation 2 (one line, exit 130), a last resume: every
+    completed generation kept untouched, the run finished; then it says so, and
+    --generations N extends it. (Its commands ran in the background: `interrupted_run`.)"""
+    seen = background(interrupted_run)
+    out = seen["out"]
+    r = RunDir(out)
+    said = "".join(seen.get("said", []))[-2000:]
+    assert seen["gen 1 said"] and 1 in seen["then saved"], said
+    assert seen["killed"] == [0, 1], seen["killed"]
+
+    assert seen["resuming said"], said
+    code, err, saved = seen["interrupted"]
+    assert code == 130, err[-3000:]
+    assert saved == [0, 1]  # generation 2 was in progress
     lines = [line for line in err.splitlines() if line.startswith("interrupted:")]
     assert lines == [
         f"interrupted: generations 0–1 are saved in {out}; continue with: "
@@ -261,10 +277,11 @@ def test_sigkill_then_ctrl_c_then_resume_loses_nothing(tmp_path):
     ]
     assert "Traceback" not in err
 
-    done = main_job("--resume", str(out))
+    done = seen["resumed"]
     assert done.returncode == 0, done.stderr[-3000:]
     assert "resuming after generation 1" in done.stdout
     assert r.completed() == [0, 1, 2]
+    digests = seen["digests"]
     assert {g: _digest(r, g) for g in digests} == digests  # completed ones untouched
     assert [row["generation"] for row in r.metrics_rows()] == [0, 1, 2]
     lines = r.metrics_csv.read_text().strip().splitlines()
@@ -276,7 +293,7 @@ def test_sigkill_then_ctrl_c_then_resume_loses_nothing(tmp_path):
     lock.release()
 
     # a finished run says so (before Ray starts); --generations N extends it
-    again = main_job("--resume", str(out))
+    again = seen["again"]
     assert again.returncode == 0 and f"{out} is finished: generation 2 of 2" in again.stdout
     assert "Ray" not in again.stdout
     config_more, out_more = run.resolve(
@@ -322,23 +339,36 @@ def test_a_fresh_run_refuses_a_used_run_directory(tmp_path, capsys):
     assert not ray.is_initialized()
 
 
-def test_a_write_that_fails_during_a_generation_is_one_line_and_generations_stay_whole(
-    smoke_run, tmp_path
-):
-    """metrics.csv blocked by a folder of that name (a write no permission can bypass):
-    resuming for a second generation ends with one line naming the file and exit code 1,
-    and every generation on disk is whole and loads (what --resume starts from)."""
+def blocked_write(background, folder: Path) -> tuple[Path, subprocess.CompletedProcess]:
+    """The command of the test below, run in the background (`Background`): the smoke run,
+    copied, with metrics.csv blocked by a folder of that name, resumed for a second
+    generation."""
     import shutil
 
-    out = tmp_path / "blocked"
-    shutil.copytree(smoke_run[0], out, ignore=shutil.ignore_patterns(".lock"))
+    out = folder / "blocked"
+    shutil.copytree(background("smoke")[0], out, ignore=shutil.ignore_patterns(".lock"))
     config = yaml.safe_load((out / "config.yaml").read_text())
     config["grapher"]["workers"] = 0  # no member actors to start: not what this is about
     (out / "config.yaml").write_text(yaml.safe_dump(config))
     (out / "metrics.csv").unlink()
     (out / "metrics.csv").mkdir()
     (out / "metrics.csv" / "keep").write_text("")
-    done = main_job("--resume", str(out), "--generations", "2")
+    cmd = [sys.executable, "-m", "hola_ray.run", "--resume", str(out), "--generations", "2"]
+    cmd += ["--no-dashboard", "--quiet"]
+    done = background.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    stdout, stderr = done.communicate(timeout=300)
+    return out, subprocess.CompletedProcess(cmd, done.returncode, stdout, stderr)
+
+
+@pytest.mark.background.with_args(blocked_write)
+def test_a_write_that_fails_during_a_generation_is_one_line_and_generations_stay_whole(
+    smoke_run, background
+):
+    """metrics.csv blocked by a folder of that name (a write no permission can bypass):
+    resuming for a second generation ends with one line naming the file and exit code 1,
+    and every generation on disk is whole and loads (what --resume starts from). (Its
+    command ran in the background: `blocked_write`, on a copy of `smoke_run`.)"""
+    out, done = background(blocked_write)
     err = done.stderr.strip().splitlines()
     assert done.returncode == 1, done.stderr[-2000:]
     assert err[-1].startswith(f"error: writing {out / 'metrics.csv'} failed (Is a directory)")
