@@ -10,26 +10,37 @@ import sys
 import tempfile
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 from hypothesis import settings
 
-from hola_ray.env import PursuitConfig
+if TYPE_CHECKING:
+    from hola_ray.env import PursuitConfig
 
 # The commands re-run themselves under PYTHONHASHSEED=0 when it is not set
 # (`hola_ray.progress.fixed_hash_seed`): the tests' subprocesses start with it set, as
 # the re-run would, and skip a second interpreter's imports (seconds each).
 os.environ.setdefault("PYTHONHASHSEED", "0")
+# The suite shares its 2 cores with its background work (`Background`), and numba's
+# parallel kernels on 2 OpenMP threads spin while another process holds the other core: the
+# rollout tests took 17.7 s so, 6.3 s on one thread (4.9 s on two with a core idle). Every
+# process of the suite (set before numba is imported, and inherited) runs them on one.
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 
 @pytest.fixture(scope="session")
 def config() -> PursuitConfig:
+    from hola_ray.env import PursuitConfig
+
     return PursuitConfig()
 
 
 @pytest.fixture(scope="session")
 def frozen_config() -> PursuitConfig:
     """dt = 1e-6 s: drones move at most 6e-7 m per step, so set distances hold to 1e-6."""
+    from hola_ray.env import PursuitConfig
+
     return dataclasses.replace(PursuitConfig(), dt=1e-6)
 
 
@@ -99,11 +110,11 @@ class Background:
     plays in this one process and leaves a core idle much of the time (Ray modules too: half
     their time); the background takes it. A test marked
     `@pytest.mark.background.with_args(job)` gets the job's result (or its error) from the
-    fixture: `background(job)`. The jobs of the
-    selected tests run in the order the tests were collected, after the kernels are
-    compiled (`_WARM`) and the smoke run (`smoke_run`) made. A job is called as
-    `job(background, folder)`: it starts its commands with `background.popen`, so that a
-    session that stops kills them, and may take an earlier job's result."""
+    fixture: `background(job)`. The jobs of the selected tests run in the order the tests
+    were collected, after the kernels are compiled (`_WARM`) and the smoke run (`smoke_run`)
+    made. A job is called as `job(background, folder)`: it starts its commands with
+    `background.popen`, so that a session that stops kills them, and may take an earlier
+    job's result."""
 
     def __init__(self, jobs: list) -> None:
         import concurrent.futures
