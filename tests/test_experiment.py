@@ -25,11 +25,6 @@ ROOT = Path(__file__).resolve().parent.parent
 SMOKE = ROOT / "configs" / "experiments" / "smoke.yaml"
 
 
-def experiment(*args: str, **kwargs) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "hola_ray.experiment", *args]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=ROOT, **kwargs)
-
-
 def digest(folder: Path) -> str:
     h = hashlib.sha256()
     for p in sorted(folder.rglob("*")):

@@ -27,11 +27,6 @@ ROOT = Path(__file__).resolve().parent.parent
 SMOKE = ROOT / "configs" / "smoke.yaml"
 
 
-def main_job(*args: str, **kwargs) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "hola_ray.run", *args, "--no-dashboard", "--quiet"]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT, **kwargs)
-
-
 def test_smoke_run_writes_the_whole_run_directory(smoke_run):
     out, done = smoke_run
     assert done.returncode == 0, done.stderr[-3000:]
