@@ -2,9 +2,10 @@
 
     python benchmarks/service_speed.py [--quick]
 
-1. Grapher: hyperedge-evaluation episodes/s with 1 and 2 workers (member actors side by
-   side) on the same hyperedges and seeds → the speedup (target ≥ 1.8× on 2 CPUs), next
-   to the machine's own scaling from one busy process to two, measured in the same run.
+1. Grapher: hyperedge-evaluation episodes/s with 1 and 2 workers (evaluation actors side
+   by side, the hyperedges in two chunks) on the same hyperedges and seeds → the speedup
+   (target ≥ 1.8× on 2 CPUs), next to the machine's own scaling from one busy process to
+   two, measured in the same run.
 2. Oracle: environment steps/s sampled (over the time of each iteration outside the PPO
    update, which the learner times itself) and overall (sampling + PPO update), with the
    default config's PPO and the paper's (batch 1024, minibatch 256, 20 epochs, 256×256)
@@ -33,8 +34,8 @@ import torch
 from hola_ray.methods.config import SAMPLERS, RunConfig
 from hola_ray.methods.trainer import make_oracle
 from hola_ray.policies.learned import FORMAT
+from hola_ray.population.evaluators import EvaluatorPool
 from hola_ray.population.grapher import evaluate_edges
-from hola_ray.population.member import MemberPool
 from hola_ray.population.state import edge_seed
 from hola_ray.run import DEFAULT
 
@@ -80,19 +81,30 @@ def grapher_speed(config: RunConfig, members: int, episodes: int, rounds: int) -
     env = config.env
     exports = {n: random_export(env.obs_dim, config.oracle.hidden, n) for n in range(members)}
     edges = list(itertools.combinations(range(members), config.l))
-    pool = MemberPool(env.to_dict())
-    actors = pool.ensure(exports)  # each actor compiles the simulator as it starts
+    pools = {workers: EvaluatorPool(env.to_dict(), workers) for workers in (1, 2)}
+    for pool in pools.values():  # each actor compiles the simulator as it starts
+        ray.get([actor.ping.remote() for actor in pool.actors().values()])
     ref = ray.put(exports)
     rates: dict[int, list[float]] = {1: [], 2: []}
     steps_per_s: dict[int, list[float]] = {1: [], 2: []}
+    weights = {}
     for _ in range(rounds):
         for workers in (1, 2):
             results, stats = evaluate_edges(
-                edges, actors, ref, episodes, lambda e: edge_seed(0, 0, e), workers, progress=False
+                edges,
+                pools[workers],
+                ref,
+                episodes,
+                lambda e: edge_seed(0, 0, e),
+                2,
+                progress=False,
             )
+            weights[workers] = results
             rates[workers].append(stats.episodes_per_s)
             steps_per_s[workers].append(sum(r.length * r.episodes for r in results) / stats.wall_s)
-    pool.shutdown()
+    for pool in pools.values():
+        pool.shutdown()
+    assert weights[1] == weights[2], "the weights changed with the worker count"
     out = {}
     for workers in (1, 2):
         out[f"grapher_episodes_per_s_{workers}w"] = statistics.median(rates[workers])

@@ -97,7 +97,7 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
             f"{figures[v]['success']:.1%}, collision {figures[v]['collision']:.1%}",
             flush=True,
         )
-    gen0 = run.read_json(0, "metrics.json")
+    gen0 = run.metrics(0)
     out = POPULATIONS_DIR / name
     package(
         run.root,

@@ -171,7 +171,9 @@ def init_ray(args: argparse.Namespace) -> None:
         print(f"Ray dashboard: {url}", flush=True)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, started: float | None = None) -> int:
+    """The command; `started`: when the process began (`time.perf_counter()`), so the
+    run's first metrics row counts the imports and Ray's start."""
     args = parse_args(argv)
     try:
         config, out = resolve(args)
@@ -200,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
             f"generations, {config.oracle.env_steps:,} env steps per oracle",
             flush=True,
         )
-        Trainer(config, out, progress=not args.quiet, lock=lock).fit()
+        Trainer(config, out, progress=not args.quiet, lock=lock, started=started).fit()
     except KeyboardInterrupt:
         return interrupted(out)
     except OSError as err:  # a failed write, here or in the coordinator (a Ray task's error)
@@ -261,7 +263,9 @@ def script() -> None:
     from hola_ray.progress import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.run", sys.argv[1:])
-    leave(main())
+    from hola_ray.clock import process_start
+
+    leave(main(started=process_start()))
 
 
 if __name__ == "__main__":

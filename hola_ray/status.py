@@ -64,7 +64,7 @@ def disk_view(run_dir: Path) -> dict[str, Any]:
         for node, slot in slots.items()
     ]
     view["decision"] = state.get("decision")
-    view["last_metrics"] = run.read_json(last, "metrics.json")
+    view["last_metrics"] = run.metrics(last)
     return view
 
 
@@ -114,7 +114,9 @@ def plot_progress(run_dir: Path) -> Path:
     learners and the best generation (on the validation curve, its rule) marked; φ entropy
     (self-play: episode length). Per PPO iteration
     (iterations.csv): the trained policy's median std and its clipped fraction. Against the
-    run's cumulative wall time: success and collision; per generation, the Oracle's speed."""
+    run's cumulative wall time: success and collision; per generation, the Oracle's speed.
+    Where the time went (`hola_ray.clock`): each row's seconds by phase, and the run's
+    share of each phase."""
     from matplotlib.figure import Figure
 
     run = RunDir(run_dir)
@@ -129,8 +131,8 @@ def plot_progress(run_dir: Path) -> Path:
             [float(r[f"{prefix}_{name}_se"]) for r in have],
         )
 
-    fig = Figure(figsize=(17, 7.6))  # no pyplot, no global backend switched
-    axes = fig.subplots(2, 4)
+    fig = Figure(figsize=(21, 7.6))  # no pyplot, no global backend switched
+    axes = fig.subplots(2, 5)
     for ax, name, label in (
         (axes[0, 0], "success", "success rate"),
         (axes[0, 1], "collision", "collision rate"),
@@ -209,6 +211,7 @@ def plot_progress(run_dir: Path) -> Path:
         axes[1, 2].plot(every, [float(r["phi_entropy"]) for r in rows], marker="o")
         axes[1, 2].set(xlabel="generation", ylabel="φ entropy (nats)")
     _wall_time_panels(rows, axes[0, 3], axes[1, 3])
+    _time_panels(rows, axes[0, 4], axes[1, 4])
     fig.suptitle(run_dir.name, fontsize=9)
     fig.tight_layout()
     out = run_dir / "progress.png"
@@ -242,6 +245,40 @@ def _wall_time_panels(rows: list[dict[str, str]], figures, speed) -> None:
         marker="o",
     )
     speed.set(xlabel="generation", ylabel="Oracle env steps / s of training")
+
+
+def _time_panels(rows: list[dict[str, str]], per_row, shares) -> None:
+    """Where the time went: each metrics row's seconds stacked by phase (`time_<phase>_s`,
+    `hola_ray.clock.PHASES`), and each phase's share of all rows' time."""
+    from hola_ray.clock import NAMES, column
+
+    timed = [r for r in rows if r.get(column("other"))]
+    phases = [p for p in NAMES if any(r.get(column(p)) for r in timed)]
+    gens = [int(r["generation"]) for r in timed]
+    bottom = [0.0] * len(timed)
+    totals = {}
+    colors = dict(zip(NAMES, _PHASE_COLORS, strict=False))
+    for phase in phases:
+        seconds = [float(r.get(column(phase)) or 0.0) for r in timed]
+        per_row.bar(gens, seconds, bottom=bottom, label=phase, color=colors[phase])
+        bottom = [b + x for b, x in zip(bottom, seconds, strict=True)]
+        totals[phase] = sum(seconds)
+    per_row.set(xlabel="generation (metrics row)", ylabel="seconds", title="where the time went")
+    if timed:
+        per_row.legend(fontsize=6, ncol=2)
+    whole = sum(totals.values()) or 1.0
+    shown = sorted(totals, key=totals.get)
+    shares.barh(shown, [totals[p] / whole for p in shown], color=[colors[p] for p in shown])
+    for k, phase in enumerate(shown):
+        shares.text(totals[phase] / whole, k, f" {totals[phase]:.0f} s", va="center", fontsize=7)
+    shares.set(xlabel=f"share of the run's {whole:.0f} s", xlim=(0, 1))
+
+
+_PHASE_COLORS = (
+    "#7f7f7f", "#c7c7c7", "#bcbd22", "#dbdb8d", "#8c564b", "#c49c94", "#1f77b4",
+    "#aec7e8", "#9467bd", "#ff7f0e", "#ffbb78", "#2ca02c", "#d62728", "#f7b6d2",
+)  # fmt: skip
+"""one color per phase of `hola_ray.clock.PHASES`, in order"""
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, fields
 
 import numpy as np
+import torch
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
@@ -13,6 +15,7 @@ from hola_ray.evaluation.metrics import TEAM
 from hola_ray.evaluation.stats import episode_seeds as derive_seeds
 from hola_ray.evaluation.stats import mean_and_se
 from hola_ray.policies.base import Policy, seated
+from hola_ray.policies.learned import MLPPolicy, MLPStack
 
 Dynamics = Callable[[BatchedPursuit], Callable[[np.ndarray], np.ndarray]]
 """Outside dynamics: env → (actions [B, n_p] → the pursuers' positions after the step)."""
@@ -50,6 +53,10 @@ class RolloutResult:
     def episodes(self) -> int:
         return int(self.success.shape[0])
 
+    def part(self, start: int, stop: int) -> RolloutResult:
+        """Episodes start … stop − 1 alone (one hyperedge's of a batched rollout)."""
+        return RolloutResult(*(getattr(self, f.name)[start:stop] for f in fields(self)))
+
     def summary(self) -> dict[str, float]:
         """Rates and means with their standard errors, as plain floats."""
         out: dict[str, float] = {"episodes": float(self.episodes)}
@@ -69,6 +76,7 @@ def rollout(
     batch_size: int = 1024,
     episode_seeds: np.ndarray | None = None,
     dynamics: Dynamics | None = None,
+    batched: bool = True,
 ) -> RolloutResult:
     """Play `episodes` episodes to their end and collect their metrics.
 
@@ -83,6 +91,10 @@ def rollout(
     dynamics: how the pursuers really move (`hola_ray.flight.Crazyflies`): called with each
         batch's env, it gives a function of the step's actions that returns where each
         pursuer is at the end of the step; None is the arena's kinematic move.
+    batched: learned policies of one layout in one stacked forward pass (`MLPStack`), and
+        stateless policies asked for the rows of running episodes only; False: every policy
+        on every row it seats, one forward pass each (the reference the tests hold the
+        batched path to: the same episodes, to within the float rounding of the stack).
     """
     n_p = config.n_pursuers
     policies = seated(policies)
@@ -107,9 +119,14 @@ def rollout(
         if seeds.shape != (episodes,):
             raise ValueError(f"episode_seeds must have shape {(episodes,)}, got {seeds.shape}")
     parts = []
-    for start in range(0, episodes, batch_size):
-        stop = min(start + batch_size, episodes)
-        parts.append(_play(config, policies, assignment[start:stop], seeds[start:stop], dynamics))
+    with _one_thread():
+        for start in range(0, episodes, batch_size):
+            stop = min(start + batch_size, episodes)
+            parts.append(
+                _play(
+                    config, policies, assignment[start:stop], seeds[start:stop], dynamics, batched
+                )
+            )
     return RolloutResult(*(np.concatenate(column) for column in zip(*parts, strict=True)))
 
 
@@ -119,6 +136,7 @@ def _play(
     assignment: np.ndarray,  # [B, n_p]
     seeds: np.ndarray,  # [B]
     dynamics: Dynamics | None = None,
+    batched: bool = True,
 ) -> tuple[np.ndarray, ...]:
     batch = assignment.shape[0]
     env = BatchedPursuit(config, batch)
@@ -128,13 +146,25 @@ def _play(
     for policy, mask in zip(policies, masks, strict=True):
         if mask.any():
             policy.reset(np.ones(int(mask.sum()), dtype=bool))
+    stack, stacked = _stack(policies, masks) if batched else (None, [])
+    slot = np.full(assignment.shape, -1)  # [B, n_p] the seat's actor in the stack, or −1
+    for k, policy_index in enumerate(stacked):
+        slot[masks[policy_index]] = k
     actions = np.full((batch, config.n_pursuers), 0.5)
     while not env.done.all():
-        for policy, mask in zip(policies, masks, strict=True):
+        running = ~env.done[:, None]  # [B, 1] a finished episode's actions are not read
+        for k, (policy, mask) in enumerate(zip(policies, masks, strict=True)):
+            if k in stacked:
+                continue
+            if batched and _keeps_no_state(policy):
+                mask = mask & running
             if mask.any():
                 rows = obs[mask]
                 name = getattr(policy, "name", type(policy).__name__)
                 actions[mask] = PolicyError.check(name, policy.act(rows), len(rows))
+        if stack is not None:
+            seats = (slot >= 0) & running
+            actions[seats] = stack.act(obs[seats], slot[seats])
         obs = env.step(actions, fly(actions) if fly is not None else None).obs
     return (
         env.success.copy(),
@@ -144,3 +174,44 @@ def _play(
         env.captures.copy(),
         ~env.pursuer_active,
     )
+
+
+@contextmanager
+def _one_thread() -> Iterator[None]:
+    """torch on one thread for the rollout: a stacked forward pass rounds its last bit by the
+    thread count, and a run's episodes must play alike in a driver on two threads and in an
+    actor or a Ray task on one (the smoke run and its experiment trial agree to the bit)."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _keeps_no_state(policy: object) -> bool:
+    """A policy that keeps no per-row state (its `reset` is `Policy`'s): it may be asked for
+    the rows of running episodes alone. One that keeps state is bound to its rows, finished
+    episodes' too."""
+    return isinstance(policy, Policy) and type(policy).reset is Policy.reset
+
+
+def _stack(
+    policies: Sequence[Policy], masks: Sequence[np.ndarray]
+) -> tuple[MLPStack | None, list[int]]:
+    """The learned policies that seat anyone, as one `MLPStack` when two or more of them
+    share a layout (the largest such group), and their indices in `policies`."""
+    learned = [k for k, p in enumerate(policies) if type(p) is MLPPolicy and masks[k].any()]
+    groups: list[list[int]] = []
+    for k in learned:
+        group = next(
+            (g for g in groups if MLPStack.compatible([policies[g[0]], policies[k]])), None
+        )
+        if group is None:
+            groups.append([k])
+        else:
+            group.append(k)
+    best = max(groups, key=len, default=[])
+    if len(best) < 2:
+        return None, []
+    return MLPStack([policies[k] for k in best]), best

@@ -21,7 +21,7 @@ of the base), the seeds and the evaluation:
 Each trial (method × seed) is one `Trainer` run in `DIR/trials/<method>-s<seed>/`, run as a
 Ray task in a placement group of its own: one bundle for the trial's process (its PPO
 learner, with `oracle.gpus_per_learner` GPUs) and one CPU per env runner, packed onto one
-node where one has room. The env runners and member actors the trial starts are placed in
+node where one has room. The env runners and evaluation actors the trial starts are placed in
 that group (its coordinator, which holds no CPU, on the trial's own node), so a trial never
 waits for a CPU another trial took. With `parallel: 0` every trial asks Ray for its group
 at once: Ray runs as many as the CPUs hold and the rest wait for CPUs ("waiting for CPUs"

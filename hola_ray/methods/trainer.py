@@ -9,7 +9,8 @@ learner's hyperedges and the coordinator accepts it into the population or not, 
 method's `Rules` decide. A self-play method has no population: the Oracle seats the learner
 in every slot and the learner is judged by its own team's rollout. The driver only
 sequences the phases; the population lives in the coordinator actor, the hyperedge
-evaluations in member actors, the PPO in RLlib's env runners and learner. Every method
+evaluations and the monitors in evaluation actors, the PPO in RLlib's env runners and
+learner. Every method
 leaves `learner.pt` (the latest learner) and `best.pt` with `best.json` (the generation
 whose learner scored best in its judging).
 """
@@ -28,18 +29,16 @@ import ray
 from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
 from hola_ray import interrupt
-from hola_ray.evaluation.metrics import TEAM, VALIDATED
-from hola_ray.evaluation.rollout import rollout
-from hola_ray.evaluation.stats import mean_and_se
-from hola_ray.evaluation.teams import play
+from hola_ray.clock import PhaseClock
+from hola_ray.evaluation.metrics import TEAM
 from hola_ray.methods.config import RunConfig
+from hola_ray.methods.monitors import Monitoring, validation_teammates
 from hola_ray.oracle import LEARNER, Oracle
-from hola_ray.policies.learned import MLPPolicy
 from hola_ray.population import shipped
 from hola_ray.population.coordinator import Coordinator, coordinator_name, run_id
+from hola_ray.population.evaluators import EvaluatorPool
 from hola_ray.population.grapher import evaluate_edges, evaluate_edges_here
 from hola_ray.population.lock import RunLock
-from hola_ray.population.member import MemberPool
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import EdgeResult, edge_seed
 from hola_ray.progress import NAMESPACE
@@ -68,13 +67,18 @@ class Trainer:
     """run directories whose generation 0 a fresh run takes instead of pre-training, when
     one of them built it with the same `generation_zero_key` (an experiment's methods of
     one seed that share MEP's population: the same G_0, trained once)"""
+    started: float | None = None
+    """when the command began (`time.perf_counter()`): the first row this process writes
+    counts its start from there (`hola_ray.clock`); None: from `fit`"""
 
     def __post_init__(self) -> None:
         self.run = RunDir(self.run_dir)
         self.name = run_id(str(self.run.root))
-        self.pool = MemberPool(self.config.env.to_dict(), run_name=self.name)
-        self._validators: list | None = None  # the validation teammates, loaded once
-        self._member_teams: dict[int, dict[str, float]] = {}  # node → its self-play figures
+        c = self.config
+        self.pool = EvaluatorPool(c.env.to_dict(), c.grapher.workers, run_name=self.name)
+        self.monitoring = Monitoring(c, self.pool if c.grapher.workers else None)
+        self.clock = PhaseClock(self.started)
+        """the time of the metrics row in progress, by phase"""
         self.start_node = -1  # the member the learner started from (learner_start: member)
         self.foreign_population: tuple | None = None
         """a shipped population built in another scenario, whose G_0 this run weighs:
@@ -84,6 +88,8 @@ class Trainer:
     def fit(self) -> list[dict[str, Any]]:
         """Train until `config.generations`; returns the metrics rows written this call.
         Raises `RunDirLocked` before writing anything when another run holds the folder."""
+        if self.started is None:
+            self.clock = PhaseClock()
         lock = self.lock or RunLock(self.run_dir)
         owned = not lock.held
         note = lock.acquire()
@@ -97,8 +103,12 @@ class Trainer:
 
     def _fit(self) -> list[dict[str, Any]]:
         c, method = self.config, self.config.strategy
+        clock = self.clock
+        if self.started is not None:  # the command's imports and Ray's start
+            clock.add("process", time.perf_counter() - clock.since)
         self.run.create(c.to_yaml())
-        self._adopt()
+        with clock.phase("population"):
+            self._adopt()
         here = ray.get_runtime_context().get_node_id()
         self.coord = Coordinator.options(
             name=coordinator_name(str(self.run_dir)),
@@ -113,43 +123,62 @@ class Trainer:
             c.grapher.edges_per_learner,
             c.method,
         )
-        rows: list[dict[str, Any]] = []
+        with clock.phase("actors"):
+            self.pool.start()  # they start while this driver goes on
+        written: list[int] = []
         oracle = None
-        self._validation_teammates()  # a missing or refused validation set fails at once
+        if c.validation.enabled:
+            with clock.phase("population"):
+                validation_teammates(c)  # a missing or refused validation set fails at once
         try:
             # read here, not asked of the coordinator: its actor starts (seconds of imports)
             # while this driver pre-trains or builds its Oracle
             last = self.run.last_completed()
+            if last is None and self.foreign_population is not None and c.generations:
+                # generation 0 trains nothing (a shipped population weighed again): the
+                # Oracle is built while the coordinator and evaluation actors start
+                with clock.phase("oracle_build"):
+                    oracle = make_oracle(c)
             if last is None and method.self_play:
                 last = 0  # no population to pre-train: generation 1 is the first
             elif last is None:
-                rows.append(self._pretrain())
-                last = 0
+                self._pretrain()
+                written.append(last := 0)
                 self._saved(0)
             else:
                 self._say(f"resuming after generation {last} in {self.run.root}")
-                self._catch_up(last)
+                if not self.run.monitored(last):  # stopped before its monitors were written
+                    self._submit_monitors(last, self.run.load_learner_export(last))
+                    self._complete()
+                with clock.phase("commit"):
+                    self._catch_up(last)
                 self._saved(last)
             if last < self.config.generations:
-                oracle = make_oracle(c)
-                learner = self.run.load_learner_state(last)
-                if learner is None and last == 0 and self._starts_from_member():
-                    learner = self._starting_member()
-                if learner is not None:
-                    oracle.set_trained_weights({LEARNER: learner})
-                training = self.run.load_training_state(last) if last >= 1 else None
-                if training is not None:  # Adam's moments and the schedules go on
-                    oracle.set_training_state(training)
+                if oracle is None:
+                    with clock.phase("oracle_build"):
+                        oracle = make_oracle(c)
+                with clock.phase("seat"):
+                    learner = self.run.load_learner_state(last)
+                    if learner is None and last == 0 and self._starts_from_member():
+                        learner = self._starting_member()
+                    if learner is not None:
+                        oracle.set_trained_weights({LEARNER: learner})
+                    training = self.run.load_training_state(last) if last >= 1 else None
+                    if training is not None:  # Adam's moments and the schedules go on
+                        oracle.set_training_state(training)
                 for g in range(last + 1, self.config.generations + 1):
-                    rows.append(self._generation(g, oracle))
+                    self._generation(g, oracle)
+                    written.append(g)
                     self._saved(g)
+            if self._complete():  # the last generation's monitors
+                self._saved(written[-1])
         finally:
             if oracle is not None:
                 oracle.stop()
             self.pool.shutdown()
             ray.get(self.coord.close.remote())
             ray.kill(self.coord)
-        return rows
+        return [self.run.metrics(g) for g in written]
 
     # ---- generation 0 -------------------------------------------------------------------
     def _adopt(self) -> None:
@@ -240,24 +269,26 @@ class Trainer:
         return donor.load_member_state(node)
 
     def _pretrain(self) -> dict[str, Any]:
-        c = self.config
+        c, clock = self.config, self.clock
         self.coord.set_phase.remote("pretrain")
-        begun = start = time.perf_counter()
-        built = c.strategy.generation_zero(self)
-        states_list, stats = built.states, built.stats
-        exports = [c.export(s) for s in states_list]
+        start = time.perf_counter()
+        # a shipped population's members (weighed again here), or pre-training
+        with clock.phase("population" if self.foreign_population else "pretrain"):
+            built = c.strategy.generation_zero(self)
+            states_list, stats = built.states, built.stats
+            exports = [c.export(s) for s in states_list]
         pretrain_s = time.perf_counter() - start
-        ray.get(self.coord.init_population.remote(exports, states_list))
+        with clock.phase("coordinator"):
+            ray.get(self.coord.init_population.remote(exports, states_list))
 
         self.coord.set_phase.remote("grapher")
         results, grapher = self._grapher(0)
         self.coord.set_phase.remote("coordinator")
-        start = time.perf_counter()
-        ray.get(self.coord.record.remote(results))
+        with clock.phase("coordinator"):
+            ray.get(self.coord.record.remote(results))
         metrics = {
-            "wall_s": 0.0,  # the whole of generation 0, set below
             "env_steps": 0,
-            **self._population_as_team(0),
+            "monitored": 0,
             "pretrain_env_steps": stats.env_steps,
             "pretrain_s": round(pretrain_s, 2),
             "pretrain_env_steps_per_s": round(stats.env_steps_per_s, 1),
@@ -265,49 +296,53 @@ class Trainer:
             **built.metrics,
             **_edge_summary("population", results),
             **grapher,
-            "coordinator_s": round(time.perf_counter() - start, 4),
+            **clock.close(),
         }
-        metrics["wall_s"] = round(time.perf_counter() - begun, 2)
-        row = ray.get(self.coord.commit.remote(0, metrics, None, None, stats.iteration_log))
-        key = c.generation_zero_key()
-        if key is not None:  # what another run of the same pre-training may adopt
-            (self.run.generation(0) / KEY_FILE).write_text(key)
+        with clock.phase("commit"):  # in the next row's account
+            row = ray.get(self.coord.commit.remote(0, metrics, None, None, stats.iteration_log))
+            key = c.generation_zero_key()
+            if key is not None:  # what another run of the same pre-training may adopt
+                (self.run.generation(0) / KEY_FILE).write_text(key)
+        self._submit_monitors(0, None)
         self._say(
             f"gen 0: {built.said} in {pretrain_s:.0f}s; "
             f"G_0 success {row['population_success']:.0%}, "
             f"return {row['population_return']:.1f}"
         )
-        return row
 
     # ---- generations 1.. ----------------------------------------------------------------
-    def _generation(self, g: int, oracle: Oracle) -> dict[str, Any]:
-        c, method = self.config, self.config.strategy
+    def _generation(self, g: int, oracle: Oracle) -> None:
+        c, method, clock = self.config, self.config.strategy, self.clock
         prev = ray.get(self.coord.view.remote())["last_metrics"]
         self.coord.set_phase.remote("oracle")
         start = time.perf_counter()
-        slot = method.before_training(self, g, oracle)
-        if not method.self_play:
-            oracle.seat(
-                ray.get(self.coord.plan.remote(slot)),
-                lambda nodes: ray.get(self.coord.member_states.remote(nodes)),
-                salt=g,
-            )
-        oracle.reseed(g)  # generation g samples alike, resumed or not
+        with clock.phase("seat"):
+            slot = method.before_training(self, g, oracle)
+            if not method.self_play:
+                oracle.seat(
+                    ray.get(self.coord.plan.remote(slot)),
+                    lambda nodes: ray.get(self.coord.member_states.remote(nodes)),
+                    salt=g,
+                )
+            oracle.reseed(g)  # generation g samples alike, resumed or not
+        trained = time.perf_counter()
         stats = oracle.train(c.oracle.env_steps, desc=f"gen {g} oracle", progress=self.progress)
-        learner_state = oracle.weights([LEARNER])[LEARNER]
-        training = oracle.training_state()
-        export = oracle.export_state(learner_state)
+        trained = time.perf_counter() - trained
+        clock.add("oracle_update", stats.learn_s)
+        clock.add("oracle_sample", trained - stats.learn_s)
+        with clock.phase("export"):
+            learner_state = oracle.weights([LEARNER])[LEARNER]
+            training = oracle.training_state()
+            export = oracle.export_state(learner_state)
         oracle_s = time.perf_counter() - start
+        self._complete()  # the previous generation's monitors, played while this one trained
 
         if method.self_play:
-            self.coord.set_phase.remote("self-play evaluation")
-            judged, decision = self._self_play_eval(g, export), None
+            judged, decision = {}, None
         else:
             judged, decision = self._judge_in_population(g, export, learner_state, slot)
-        self.coord.set_phase.remote("validation")
-        judged |= self._validate(export) | self._population_as_team(g)
         metrics = {
-            "wall_s": round(time.perf_counter() - start, 2),
+            "monitored": 0,
             "env_steps": int(prev.get("env_steps", 0)) + stats.env_steps,
             "learner_samples": int(prev.get("learner_samples", 0)) + stats.learner_samples,
             "gradient_steps": int(prev.get("gradient_steps", 0)) + stats.gradient_steps,
@@ -320,28 +355,71 @@ class Trainer:
             **({"learner_start_node": self.start_node} if g == 1 and self.start_node >= 0 else {}),
             **{k: round(v, 4) for k, v in stats.spread.items()},
             **judged,
+            **clock.close(),
         }
-        row = ray.get(
-            self.coord.commit.remote(
-                g, metrics, learner_state, decision, stats.iteration_log, export, training
+        with clock.phase("commit"):  # in the next row's account
+            row = ray.get(
+                self.coord.commit.remote(
+                    g, metrics, learner_state, decision, stats.iteration_log, export, training
+                )
             )
-        )
-        # best.pt first: learner.json, written last, says the generation is wholly saved
-        best = self.run.keep_best(g, row, export)
-        self._save_learner(g, export, None if decision is None else decision.to_dict())
-        if decision is None:
-            verdict = (
-                "best so far" if best else f"best stays generation {self.run.best_generation()}"
-            )
-        else:
-            verdict = method.verdict(c, decision)
-        self._say(
-            f"gen {g}: learner success {row['learner_success']:.0%} ± "
+            # learner.json, written last, says the generation is saved (best.pt follows
+            # its monitors: `_complete`)
+            self._save_learner(g, export, None if decision is None else decision.to_dict())
+        self._submit_monitors(g, export)
+        judged_as = (
+            ""
+            if method.self_play
+            else f"learner success {row['learner_success']:.0%} ± "
             f"{row['learner_success_se']:.0%}, collision {row['learner_collision']:.0%}, "
-            f"return {row['learner_return']:.1f}; {verdict}; std {row.get('std_median', 0):.2f}; "
+            f"return {row['learner_return']:.1f}; {method.verdict(c, decision)}; "
+        )
+        self._say(
+            f"gen {g}: {judged_as}std {row.get('std_median', 0):.2f}; "
             f"oracle {oracle_s:.0f}s ({stats.env_steps_per_s:.0f} steps/s)"
         )
-        return row
+
+    def _submit_monitors(self, g: int, export: dict[str, Any] | None) -> None:
+        """Start generation g's monitors (`hola_ray.methods.monitors`) of its learner's
+        export and of the population as the coordinator holds it now."""
+        members = None
+        if not self.config.strategy.self_play:
+            nodes = sorted(ray.get(self.coord.slots.remote()))
+            members = ray.get(self.coord.exports.remote(nodes))
+        self.coord.set_phase.remote("monitors")
+        self.monitoring.submit(g, export, members)
+
+    def _complete(self) -> bool:
+        """Write the pending generation's monitors beside it and keep its learner as best.pt
+        if it did best (waiting for them: the phase `monitors`); False when none pend."""
+        with self.clock.phase("monitors"):
+            done = self.monitoring.collect()
+            if done is None:
+                return False
+            g, figures = done
+            ray.get(self.coord.complete.remote(g, figures))
+            row = self.run.metrics(g)
+            best = g >= 1 and self.run.keep_best(g, row, self.run.load_learner_export(g))
+        judged = ""
+        if "members_success" in figures:
+            judged = (
+                f"members as copies success {row['members_success']:.0%} (the weakest "
+                f"{row['members_success_min']:.0%}), teams of members "
+                f"{row['population_team_success']:.0%}; "
+            )
+        if "learner_success" in figures:  # self-play: the learner as copies
+            judged = (
+                f"as {self.config.env.n_pursuers} copies success {row['learner_success']:.0%}, "
+                f"collision {row['learner_collision']:.0%}; "
+            )
+        if "val_success" in figures:
+            judged += (
+                f"with the validation teammates success {row['val_success']:.0%}, "
+                f"collision {row['val_collision']:.0%}, own crash {row['val_learner_crash']:.0%}; "
+            )
+        kept = "best so far" if best else f"best stays generation {self.run.best_generation()}"
+        self._say(f"gen {g} monitored: {judged}{kept if g >= 1 else ''}".rstrip("; "))
+        return True
 
     def _save_learner(self, g: int, export: dict[str, Any], decision: dict | None) -> None:
         """learner.pt and learner.json: generation g's learner, and whether it joined."""
@@ -368,9 +446,7 @@ class Trainer:
         if best is not None and (self.run.best_generation() != best or not self.run.best.is_file()):
             self.run.best_info.unlink(missing_ok=True)
             state = self.run.load_learner_state(best)
-            self.run.keep_best(
-                best, self.run.read_json(best, "metrics.json"), self.config.export(state)
-            )
+            self.run.keep_best(best, self.run.metrics(best), self.config.export(state))
             self._say(f"best.pt written again from generation {best}")
         if self.run.learner_generation() != last:
             state = self.run.load_learner_state(last)
@@ -382,16 +458,13 @@ class Trainer:
         """The Grapher weighs the learner's hyperedges; the coordinator decides (pbt: on
         the agent of `slot`)."""
         self.coord.set_phase.remote("grapher")
-        candidate = ray.get(self.coord.propose.remote(export, learner_state))
+        with self.clock.phase("grapher"):
+            candidate = ray.get(self.coord.propose.remote(export, learner_state))
         results, grapher = self._grapher(g)
         self.coord.set_phase.remote("coordinator")
-        start = time.perf_counter()
-        ray.get(self.coord.record.remote(results))
-        decision = ray.get(self.coord.decide.remote(slot, g))
-        if not decision.accepted or decision.copied_from is not None:
-            self.pool.remove(candidate)  # gone, or its weights are another member's now
-        if decision.replaced is not None:
-            self.pool.remove(decision.replaced)
+        with self.clock.phase("coordinator"):
+            ray.get(self.coord.record.remote(results))
+            decision = ray.get(self.coord.decide.remote(slot, g))
         judged = {
             **_edge_summary("learner", results),
             **grapher,
@@ -401,121 +474,43 @@ class Trainer:
             "eta": decision.eta,
             "replaced": -1 if decision.replaced is None else decision.replaced,
             "copied_from": -1 if decision.copied_from is None else decision.copied_from,
-            "coordinator_s": round(time.perf_counter() - start, 4),
         }
         return judged, decision
 
-    def _self_play_eval(self, g: int, export) -> dict[str, Any]:
-        """Self-play: the exported learner in every slot, `grapher.episodes_per_edge` episodes."""
-        c = self.config
-        start = time.perf_counter()
-        team = [MLPPolicy(c.env, export)] * c.env.n_pursuers
-        episodes = c.grapher.episodes_per_edge
-        result = rollout(c.env, team, episodes, seed=edge_seed(c.seed, g, ()))
-        summary = result.summary()
-        judged = {"learner_episodes": episodes, "eval_s": round(time.perf_counter() - start, 2)}
-        for name, key in _REPORTED:
-            judged[f"learner_{name}"] = round(summary[key], 4)
-            judged[f"learner_{name}_se"] = round(summary[f"{key}_se"], 4)
-        return judged
-
-    def _validate(self, export) -> dict[str, float]:
-        """The learner with the validation teammates (`validation.pool`): in a random seat,
-        its teammates drawn per episode, the same episodes every generation. best.pt is the
-        generation that does best here, for every method."""
-        c = self.config
-        if not c.validation.enabled:
-            return {}
-        start = time.perf_counter()
-        played = play(
-            MLPPolicy(c.env, export),
-            self._validation_teammates(),
-            c.env,
-            c.validation.episodes,
-            [VALIDATION_SEED + c.seed],
-        )
-        out: dict[str, float] = {}
-        for name in VALIDATED:
-            mean, se = mean_and_se(played[name])
-            out[f"val_{name}"], out[f"val_{name}_se"] = round(mean, 4), round(se, 4)
-        out["val_s"] = round(time.perf_counter() - start, 2)
-        return out
-
-    def _validation_teammates(self) -> list:
-        """The validation set's members for this run's scenario (loaded once; refused if
-        it shares a member with an evaluation pool: `hola_ray.evaluation.pools.load_validation`)."""
-        c = self.config
-        if self._validators is None and c.validation.enabled:
-            from hola_ray.evaluation.pools import load_validation
-
-            self._validators = list(load_validation(c.validation.pool, c.env).values())
-        return self._validators or []
-
-    def _population_as_team(self, g: int) -> dict[str, float]:
-        """Can the population pursue? Each member as a team of its own copies (its self-play
-        success, collision and the share of its seats that crashed; measured once per
-        node, the mean and the weakest over members), and teams of distinct members drawn
-        from the population (`population_team_*`)."""
-        c = self.config
-        if c.strategy.self_play:  # no population
-            return {}
-        nodes = sorted(ray.get(self.coord.slots.remote()))
-        exports = ray.get(self.coord.exports.remote(nodes))
-        episodes, n_p = c.grapher.episodes_per_edge, c.env.n_pursuers
-        for v in nodes:
-            if v not in self._member_teams:
-                result = rollout(
-                    c.env,
-                    [MLPPolicy(c.env, exports[v])] * n_p,
-                    episodes,
-                    seed=edge_seed(c.seed, 0, (v,) * n_p),
-                )
-                self._member_teams[v] = _team_figures(result)
-        own = [self._member_teams[v] for v in nodes]
-        out = {
-            f"members_{k}": round(float(np.mean([f[k] for f in own])), 4)
-            for k in ("success", "collision", "crash")
-        }
-        out["members_success_min"] = round(min(f["success"] for f in own), 4)
-        rng = np.random.default_rng([c.seed, g, 3])
-        teams = np.stack(
-            [rng.choice(len(nodes), n_p, replace=len(nodes) < n_p) for _ in range(episodes)]
-        )
-        policies = [MLPPolicy(c.env, exports[v]) for v in nodes]
-        mixed = rollout(c.env, policies, episodes, assignment=teams, seed=edge_seed(c.seed, g, ()))
-        out |= {f"population_team_{k}": round(v, 4) for k, v in _team_figures(mixed).items()}
-        return out
-
     def _grapher(self, g: int) -> tuple[list[EdgeResult], dict[str, float]]:
         c = self.config
-        edges = ray.get(self.coord.edges_to_evaluate.remote(g))
-        nodes = sorted({v for e in edges for v in e})
-        exports = ray.get(self.coord.exports.remote(nodes))
+        with self.clock.phase("grapher"):
+            edges = ray.get(self.coord.edges_to_evaluate.remote(g))
+            nodes = sorted({v for e in edges for v in e})
+            exports = ray.get(self.coord.exports.remote(nodes))
 
         def seed_of(edge: tuple[int, ...]) -> int:
             return edge_seed(c.seed, g, edge)
 
         if c.grapher.workers == 0:
-            results, stats = evaluate_edges_here(
-                edges,
-                exports,
-                c.env.to_dict(),
-                c.grapher.episodes_per_edge,
-                seed_of,
-                desc=f"gen {g} grapher",
-                progress=self.progress,
-            )
+            with self.clock.phase("grapher"):
+                results, stats = evaluate_edges_here(
+                    edges,
+                    exports,
+                    c.env.to_dict(),
+                    c.grapher.episodes_per_edge,
+                    seed_of,
+                    parts=c.grapher.chunks,
+                    desc=f"gen {g} grapher",
+                    progress=self.progress,
+                )
         else:
-            results, stats = evaluate_edges(
-                edges,
-                self.pool.ensure(exports),
-                ray.put(exports),
-                c.grapher.episodes_per_edge,
-                seed_of=seed_of,
-                workers=c.grapher.workers,
-                desc=f"gen {g} grapher",
-                progress=self.progress,
-            )
+            with self.clock.phase("grapher"):
+                results, stats = evaluate_edges(
+                    edges,
+                    self.pool,
+                    ray.put(exports),
+                    c.grapher.episodes_per_edge,
+                    seed_of=seed_of,
+                    parts=c.grapher.chunks,
+                    desc=f"gen {g} grapher",
+                    progress=self.progress,
+                )
         return results, {
             "grapher_edges": stats.edges,
             "grapher_s": round(stats.wall_s, 2),
@@ -541,10 +536,6 @@ def make_oracle(config: RunConfig, seed: int | None = None) -> Oracle:
 KEY_FILE = "generation_zero_key.json"
 """in a generation-0 folder: the `generation_zero_key` it was built with"""
 
-VALIDATION_SEED = 90_001
-"""Validation episodes' seeds: VALIDATION_SEED + the run's seed, apart from the zero-shot
-evaluation's (0, 1, 2 …) and Table II's"""
-
 
 def _differences(a: Any, b: Any, prefix: str = "env") -> str:
     """The fields in which two (nested) config dataclasses differ, as dotted names."""
@@ -556,15 +547,6 @@ def _differences(a: Any, b: Any, prefix: str = "env") -> str:
         elif x != y:
             out.append(f"{prefix}.{f.name}")
     return ", ".join(out)
-
-
-def _team_figures(result) -> dict[str, float]:
-    """Success, collision and the share of seats that crashed, of a rollout."""
-    return {
-        "success": float(result.success.mean()),
-        "collision": float(result.collision.mean()),
-        "crash": float(result.crashed.mean()),
-    }
 
 
 def _edge_summary(prefix: str, results: list[EdgeResult]) -> dict[str, float]:

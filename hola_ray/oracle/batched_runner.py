@@ -56,7 +56,7 @@ from ray.rllib.utils.metrics import (
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitPPOModule
-from hola_ray.policies.learned import MLPPolicy, export_from_rllib
+from hola_ray.policies.learned import MLPPolicy, MLPStack, export_from_rllib
 from hola_ray.progress import pin_threads, quiet_ray_noise, seed_torch
 
 SKIP = MultiAgentEpisode.SKIP_ENV_TS_TAG
@@ -409,22 +409,15 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
 
 
 class _PartnerStack:
-    """The frozen partners' actors as one batched forward pass.
-
-    Layer l of every partner is stacked into one [K, out, in] tensor (copied at the start of
-    each `sample`, so pushed weights count); a step's rows are grouped by partner into a
-    [K, G, in] batch, padded to the largest group G, and go through one `baddbmm` per
-    layer. A batched float32 matmul may round the last bit differently from RLlib's per-module
-    one; the actions are the same policies' means to within 1e-6."""
+    """The frozen partners' actors as one batched forward pass (`MLPStack`, its layers
+    copied at the start of each `sample`, so pushed weights count)."""
 
     def __init__(self, ids: list[str], modules: list, actors: list[MLPPolicy]) -> None:
         self.ids = ids
         self.dist_cls = modules[0].get_inference_action_dist_cls()
-        self.with_features = actors[0].with_features  # the same features for every partner
-        self.activation = actors[0].activation
-        depth = len(actors[0].weights)
-        self.weights = [torch.stack([a.weights[k] for a in actors]) for k in range(depth)]
-        self.biases = [torch.stack([a.biases[k] for a in actors])[:, None] for k in range(depth)]
+        self.stack = MLPStack(actors)
+        self.with_features = self.stack.with_features
+        self.logits = self.stack.logits
         self._slots: tuple[int, np.ndarray] = (-1, np.zeros(0, np.int64))
 
     @classmethod
@@ -435,15 +428,7 @@ class _PartnerStack:
             return None
         modules = [m for m, _ in partners.values()]
         actors = [a for _, a in partners.values()]
-        first = actors[0]
-        same = all(
-            [w.shape for w in a.weights] == [w.shape for w in first.weights]
-            and a.activation is first.activation
-            and a.feature_indices == first.feature_indices
-            and a.feature_gain == first.feature_gain
-            and type(m) is type(modules[0])
-            for m, a in zip(modules, actors, strict=True)
-        )
+        same = MLPStack.compatible(actors) and all(type(m) is type(modules[0]) for m in modules)
         return cls(list(partners), modules, actors) if same else None
 
     def slots(self, module_ids: list[str]) -> np.ndarray:
@@ -455,24 +440,6 @@ class _PartnerStack:
                 np.array([slot.get(mid, -1) for mid in module_ids], np.int64),
             )
         return self._slots[1]
-
-    def logits(self, x: torch.Tensor, slot: np.ndarray) -> torch.Tensor:
-        """Distribution inputs [N, out] of rows x [N, in], row i played by partner slot[i]."""
-        order = np.argsort(slot, kind="stable")
-        grouped = slot[order]
-        counts = np.bincount(grouped, minlength=len(self.ids))
-        rank = np.arange(grouped.size) - (np.cumsum(counts) - counts)[grouped]
-        k, r = torch.from_numpy(grouped), torch.from_numpy(rank)
-        h = x.new_zeros((len(self.ids), int(counts.max()), x.shape[1]))
-        h[k, r] = x[torch.from_numpy(order)]
-        last = len(self.weights) - 1
-        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
-            h = torch.baddbmm(b, h, w.transpose(1, 2))
-            if i < last:
-                h = self.activation(h)
-        out = torch.empty((grouped.size, h.shape[-1]), dtype=h.dtype)
-        out[torch.from_numpy(order)] = h[k, r]
-        return out
 
 
 class _Buffers:

@@ -256,6 +256,74 @@ class MLPPolicy(Policy):
         return rescale_action(self.mean(self._check(obs)).numpy(), self.low, self.high)
 
 
+class MLPStack:
+    """Several `MLPPolicy`s of one layout as one batched forward pass.
+
+    Layer l of every actor is stacked into one [K, out, in] tensor (the actors' tensors as
+    they are when the stack is made); a step's rows are grouped by actor into a [K, G, in]
+    batch, padded to the largest group G, and go through one `baddbmm` per layer. A batched
+    float32 matmul may round the last bit differently from an actor's own; the actions are
+    the same policies' means to within 1e-6."""
+
+    def __init__(self, actors: Sequence[MLPPolicy]) -> None:
+        if not actors or not MLPStack.compatible(actors):
+            raise ValueError("an MLPStack holds one or more actors of one layout")
+        first = actors[0]
+        self.size = len(actors)
+        self.dist, self.low, self.high = first.dist, first.low, first.high
+        self.with_features = first.with_features  # the same features for every actor
+        self.activation = first.activation
+        depth = len(first.weights)
+        self.weights = [torch.stack([a.weights[k] for a in actors]) for k in range(depth)]
+        self.biases = [torch.stack([a.biases[k] for a in actors])[:, None] for k in range(depth)]
+
+    @staticmethod
+    def compatible(actors: Sequence[MLPPolicy]) -> bool:
+        """Whether the actors share one layout (layers, activation, features, distribution
+        and action bounds), so that one stack can play them all."""
+        first = actors[0]
+        return all(
+            [w.shape for w in a.weights] == [w.shape for w in first.weights]
+            and a.activation is first.activation
+            and a.feature_indices == first.feature_indices
+            and a.feature_gain == first.feature_gain
+            and (a.dist, a.low, a.high) == (first.dist, first.low, first.high)
+            for a in actors
+        )
+
+    @torch.no_grad()
+    def logits(self, x: torch.Tensor, slot: np.ndarray) -> torch.Tensor:
+        """Distribution inputs [N, out] of rows x [N, in] (features appended), row i played
+        by actor slot[i]."""
+        order = np.argsort(slot, kind="stable")
+        grouped = slot[order]
+        counts = np.bincount(grouped, minlength=self.size)
+        rank = np.arange(grouped.size) - (np.cumsum(counts) - counts)[grouped]
+        k, r = torch.from_numpy(grouped), torch.from_numpy(rank)
+        h = x.new_zeros((self.size, int(counts.max()), x.shape[1]))
+        h[k, r] = x[torch.from_numpy(order)]
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            h = torch.baddbmm(b, h, w.transpose(1, 2))
+            if i < last:
+                h = self.activation(h)
+        out = torch.empty((grouped.size, h.shape[-1]), dtype=h.dtype)
+        out[torch.from_numpy(order)] = h[k, r]
+        return out
+
+    @torch.no_grad()
+    def act(self, obs: np.ndarray, slot: np.ndarray) -> np.ndarray:
+        """Actions [N] in [low, high] of observations [N, D], row i played by actor slot[i]:
+        each actor's deterministic action, as `MLPPolicy.act` gives it."""
+        x = self.logits(self.with_features(torch.from_numpy(np.ascontiguousarray(obs))), slot)
+        if self.dist == "gaussian":
+            mean = x[:, 0]
+        else:
+            c1, c0 = beta_concentrations(x)
+            mean = (2.0 * (c1 / (c1 + c0)) - 1.0)[:, 0]
+        return rescale_action(mean.numpy(), self.low, self.high)
+
+
 def rescale_action(action: np.ndarray, low: float = 0.0, high: float = 1.0) -> np.ndarray:
     """RLlib's unsquash of a normalised action in [−1, 1] to the Box [low, high], clipped.
 

@@ -57,10 +57,16 @@ class GrapherConfig:
     edges_per_learner: int = 0
     """(l − 1)-sets of members sampled for the learner's hyperedges; 0 = every one"""
     workers: int = 2
-    """hyperedge evaluations in flight at once (member actors busy at a time); 0 = play
-    them one after another in the driver, no member actors (small populations, tests)"""
+    """evaluation actors (`hola_ray.population.evaluators`): they play a generation's
+    hyperedge chunks side by side, and the monitors while the next generation trains; 0 =
+    play everything in the driver, no actors (small populations, tests)"""
+    chunks: int = 2
+    """batches a generation's hyperedges are cut into, each one vectorised rollout; a
+    weight depends on its chunk to within the float rounding of the stacked forward pass,
+    never on which worker plays it (so `workers` changes no weight); give each worker one"""
 
     def validate(self) -> None:
         positive_int("grapher", self, "episodes_per_edge", maximum=10**6)
         positive_int("grapher", self, "workers", minimum=0, maximum=10_000)
+        positive_int("grapher", self, "chunks", maximum=10_000)
         positive_int("grapher", self, "edges_per_learner", minimum=0, maximum=10**6)

@@ -73,7 +73,7 @@ class Coordinator:
             state = self.run.read_json(self.generation, "state.json")
             self.population = Population.from_dict(state["population"])
             self.rules.setup(self.population)  # one adopted from another method's build
-            self.last_metrics = self.run.read_json(self.generation, "metrics.json")
+            self.last_metrics = self.run.metrics(self.generation)
         self.phase = "idle"
         self._edges: list[EdgeResult] = []
         self._pending_exports: dict[int, tuple[dict, dict]] = {}
@@ -209,6 +209,21 @@ class Coordinator:
         self._edges = []
         self._publish(row, iterations)
         return row
+
+    def complete(self, generation: int, figures: Mapping[str, Any]) -> None:
+        """Write generation `generation`'s monitored figures beside it (`RunDir.complete`)
+        and publish them."""
+        self.run.complete(generation, figures)
+        if generation == self.generation:
+            self.last_metrics = {**self.last_metrics, **figures}
+        success = figures.get("learner_success")
+        if success is not None and math.isfinite(success):
+            self._gauges["learner_success"].set(success, tags=self._tags)
+        for key, value in figures.items():
+            numeric = isinstance(value, int | float) and not isinstance(value, bool)
+            if numeric and math.isfinite(value):
+                self._tb.add_scalar(key, value, generation)
+        self._tb.flush()
 
     def _publish(self, row: Mapping[str, Any], iterations: Sequence[Mapping[str, float]]) -> None:
         g = row["generation"]

@@ -1,11 +1,12 @@
-"""The Grapher: hyperedge evaluations fanned out over member actors with `ray.wait`, or
-played one after another in the calling process (`evaluate_edges_here`, for populations
-too small to be worth an actor per member).
+"""The Grapher: a generation's hyperedges weighed in a few large batches, fanned out over the
+run's evaluation actors (`evaluate_edges`), or played in the calling process
+(`evaluate_edges_here`, `grapher.workers: 0`).
 
-At most `workers` evaluations are in flight. Each goes to the least busy member actor of
-its hyperedge (any live member when none of them is). A failed evaluation (a member actor
-that died) is sent again, with the same seed, to another member, so the weights do not
-depend on failures or on scheduling.
+The hyperedges are cut into `chunks` contiguous chunks (`hola_ray.population.evaluators.
+chunks`: by the run's config, never by which actor is alive), each one vectorised rollout
+(`evaluate_teams`). A chunk whose actor died is played again, with the same seeds, by a
+fresh actor in its place, so the weights do not depend on failures or on scheduling; the
+calling process plays the same chunks to the same weights.
 """
 
 from __future__ import annotations
@@ -18,13 +19,12 @@ import ray
 from ray.exceptions import RayActorError
 
 from hola_ray import interrupt
-from hola_ray.population.member import evaluate_team
+from hola_ray.population.evaluators import EvaluatorPool, chunks, evaluate_teams
 from hola_ray.population.state import EdgeResult
 from hola_ray.progress import progress as progress_bar
 
 MAX_ATTEMPTS = 4
-"""Failures per hyperedge, beyond those explained by a member actor newly found dead,
-before the Grapher gives up."""
+"""Times a chunk may fail on a fresh actor before the Grapher gives up."""
 
 
 @dataclass(frozen=True)
@@ -41,71 +41,64 @@ class GrapherStats:
 
 def evaluate_edges(
     edges: Sequence[tuple[int, ...]],
-    actors: Mapping[int, ray.actor.ActorHandle],
+    pool: EvaluatorPool,
     exports_ref: ray.ObjectRef,
     episodes: int,
     seed_of: Callable[[tuple[int, ...]], int],
-    workers: int,
+    parts: int,
     desc: str = "grapher",
     progress: bool = True,
-    on_result: Callable[[int, EdgeResult], None] | None = None,
+    on_result: Callable[[int, list[EdgeResult]], None] | None = None,
 ) -> tuple[list[EdgeResult], GrapherStats]:
-    """Evaluate every hyperedge; results in the order of `edges`.
+    """Evaluate every hyperedge in `parts` chunks on the pool's actors; results in the order
+    of `edges`.
 
-    actors: node → its Member actor (every node of every edge must have an export in
-        `exports_ref`, an object-store dict node → export).
+    exports_ref: an object-store dict node → export holding every node of every edge.
     seed_of: hyperedge → its evaluation seed.
-    on_result: called with (edge index, result) as each evaluation comes back.
+    on_result: called with (chunk index, its results) as each chunk comes back.
     """
-    if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
+    if not edges:
+        return [], GrapherStats(0, 0, 0.0, 0)
+    actors = pool.actors()
     if not actors:
-        raise ValueError("no member actors to evaluate on")
+        raise ValueError("no evaluation actors to play the hyperedges on")
+    cut = chunks(edges, parts)
     results: list[EdgeResult | None] = [None] * len(edges)
-    attempts = [0] * len(edges)
-    failures = [0] * len(edges)
-    busy = dict.fromkeys(actors, 0)
-    dead: set[int] = set()
-    pending: dict[ray.ObjectRef, tuple[int, int]] = {}  # ref → (edge index, actor node)
-    queue = list(range(len(edges)))
+    failures = [0] * len(cut)
+    pending: dict[ray.ObjectRef, tuple[int, int, ray.actor.ActorHandle]] = {}  # ref → chunk, actor
     retries = 0
     start = time.perf_counter()
 
-    def submit(k: int) -> None:
-        live = [v for v in actors if v not in dead]
-        if not live:
-            raise RuntimeError("every member actor died during the Grapher")
-        own = [v for v in edges[k] if v in actors and v not in dead]
-        node = min(own or live, key=lambda v: busy[v])
-        busy[node] += 1
-        attempts[k] += 1
-        ref = actors[node].evaluate.remote(edges[k], exports_ref, episodes, seed_of(edges[k]))
-        pending[ref] = (k, node)
+    def submit(c: int, k: int) -> None:
+        teams = [edges[i] for i in cut[c]]
+        actor = pool.actors()[k]
+        ref = actor.play_edges.remote(teams, exports_ref, episodes, [seed_of(e) for e in teams])
+        pending[ref] = (c, k, actor)
 
+    keys = sorted(actors)
+    for c in range(len(cut)):
+        submit(c, keys[c % len(keys)])
     with progress_bar(len(edges) * episodes, desc, "ep", enabled=progress) as bar:
-        while queue or pending:
+        while pending:
             interrupt.check()
-            while queue and len(pending) < workers:
-                submit(queue.pop(0))
             ready, _ = ray.wait(list(pending), num_returns=1)
-            k, node = pending.pop(ready[0])
-            busy[node] -= 1
+            c, k, actor = pending.pop(ready[0])
             try:
-                results[k] = ray.get(ready[0])
+                played = ray.get(ready[0])
             except RayActorError as err:
-                # A newly found dead actor is not the hyperedge's fault (each actor dies
-                # once, so this is bounded); repeated failures on known-dead ones count.
-                if node in dead:
-                    failures[k] += 1
-                dead.add(node)
-                if failures[k] >= MAX_ATTEMPTS:
-                    raise RuntimeError(f"hyperedge {edges[k]} failed {attempts[k]} times") from err
+                failures[c] += 1
+                if failures[c] >= MAX_ATTEMPTS:
+                    teams = [edges[i] for i in cut[c]]
+                    raise RuntimeError(f"hyperedges {teams} failed {failures[c]} times") from err
                 retries += 1
-                queue.insert(0, k)
+                pool.replace(k, actor)
+                submit(c, k)
                 continue
-            bar.update(episodes)
+            for i, result in zip(cut[c], played, strict=True):
+                results[i] = result
+            bar.update(len(played) * episodes)
             if on_result is not None:
-                on_result(k, results[k])
+                on_result(c, played)
     wall = time.perf_counter() - start
     done = [r for r in results if r is not None]
     assert len(done) == len(edges)
@@ -118,18 +111,21 @@ def evaluate_edges_here(
     env_config: Mapping[str, object],
     episodes: int,
     seed_of: Callable[[tuple[int, ...]], int],
+    parts: int = 1,
     desc: str = "grapher",
     progress: bool = True,
 ) -> tuple[list[EdgeResult], GrapherStats]:
-    """Evaluate every hyperedge in this process, one after another, with the seeds the
-    member actors would use: the same weights as `evaluate_edges`, without an actor to
-    start per member (`grapher.workers: 0`)."""
-    results = []
+    """Evaluate every hyperedge in this process, chunk after chunk, with the chunks and seeds
+    the actors would use: the same weights as `evaluate_edges`, without an actor to start
+    (`grapher.workers: 0`)."""
+    results: list[EdgeResult] = []
     start = time.perf_counter()
     with progress_bar(len(edges) * episodes, desc, "ep", enabled=progress) as bar:
-        for edge in edges:
+        for part in chunks(edges, parts) if edges else []:
             interrupt.check()
-            results.append(evaluate_team(env_config, edge, exports, episodes, seed_of(edge)))
-            bar.update(episodes)
+            teams = [edges[i] for i in part]
+            seeds = [seed_of(e) for e in teams]
+            results += evaluate_teams(env_config, teams, exports, episodes, seeds)
+            bar.update(len(teams) * episodes)
     wall = time.perf_counter() - start
     return results, GrapherStats(len(edges), len(edges) * episodes, wall, 0)

@@ -8,6 +8,10 @@
         state.json                population, slots, next node id, the decision
         hyfog.json  phi.json      the HyFoG and φ after the generation
         metrics.json              the generation's metrics
+        monitors.json             its figures that decide nothing during training
+                                  (validation, the population as a team), played while
+                                  the next generation trained and written after the
+                                  folder; metrics.csv joins the two
         learner.rllib.pt          the learner's RLlib state at the end of the generation
         learner.pt                its plain-torch export (the folder plays on its own)
         learner.training.pt       its Adam state, KL coefficient and env steps so far
@@ -52,6 +56,9 @@ GENERATION_TRAINING = "learner.training.pt"
 """in a generation folder: the learner's optimizer state and schedule position"""
 
 GEN_PREFIX = "gen_"
+
+MONITORS = "monitors.json"
+"""in a generation folder: the generation's monitored figures (`RunDir.complete`)"""
 
 
 def best_score(row: Mapping[str, Any]) -> tuple[float, float]:
@@ -131,7 +138,12 @@ class RunDir:
         """Every generation up to `generations` is complete, and so are the files at the
         top (learner.json, written last, is of the last one)."""
         last = self.last_completed()
-        return last is not None and last >= generations and self.learner_generation() == last
+        return (
+            last is not None
+            and last >= generations
+            and self.learner_generation() == last
+            and self.monitored(last)
+        )
 
     def learner_generation(self) -> int | None:
         """The generation whose learner `learner.pt` holds (learner.json), if any."""
@@ -185,7 +197,7 @@ class RunDir:
         for g in self.completed():
             if g < 1 or not self.learner_state(g).is_file():
                 continue
-            score = best_score(self.read_json(g, "metrics.json"))
+            score = best_score(self.metrics(g))
             if kept is None or score > kept:
                 best, kept = g, score
         return best
@@ -267,11 +279,39 @@ class RunDir:
     def read_json(self, g: int, name: str) -> Any:
         return json.loads((self.generation(g) / name).read_text())
 
+    def metrics(self, g: int) -> dict[str, Any]:
+        """Generation g's metrics row: metrics.json and, once written, monitors.json."""
+        row = self.read_json(g, "metrics.json")
+        if (self.generation(g) / MONITORS).is_file():
+            row |= self.read_json(g, MONITORS)
+        return row
+
+    def monitored(self, g: int) -> bool:
+        """Whether generation g's monitored figures are written (`complete`), or were never
+        to come apart (a row that does not say `monitored: 0`, written before monitors were
+        played while the next generation trained)."""
+        if (self.generation(g) / MONITORS).is_file():
+            return True
+        return self.read_json(g, "metrics.json").get("monitored", 1) != 0
+
+    def complete(self, g: int, figures: Mapping[str, Any]) -> None:
+        """Write generation g's monitored figures beside its metrics (atomically: the
+        generation is monitored or not), then metrics.csv again."""
+        _atomic_write_text(self.generation(g) / MONITORS, json.dumps(dict(figures), indent=1))
+        self.rewrite_metrics_csv()
+
     def load_learner_state(self, g: int) -> dict[str, Any] | None:
         path = self.learner_state(g)
         if not path.exists():
             return None
         return load_state(path)
+
+    def load_learner_export(self, g: int) -> dict[str, Any] | None:
+        """Generation g's learner as its plain-torch export (None for pre-training)."""
+        path = self.generation(g) / GENERATION_EXPORT
+        if not path.exists():
+            return None
+        return torch.load(path, map_location="cpu", weights_only=True)
 
     def load_training_state(self, g: int) -> dict[str, Any] | None:
         """Generation g's learner training state (`Oracle.training_state`); None in a folder
@@ -316,7 +356,7 @@ class RunDir:
         run waited before `--resume` is not in it)."""
         rows, total = [], 0.0
         for g in self.completed():
-            row = self.read_json(g, "metrics.json")
+            row = self.metrics(g)
             total += generation_wall_s(row)
             rows.append({**row, "cumulative_wall_s": round(total, 2)})
         return rows

@@ -1,5 +1,5 @@
-"""The Grapher on Ray: worker count, failures and playing in the driver never change the
-hyperedge weights."""
+"""The Grapher on Ray: failures, scheduling and playing in the driver never change the
+hyperedge weights; batched chunks play the episodes the one-hyperedge path plays."""
 
 from __future__ import annotations
 
@@ -10,28 +10,40 @@ import pytest
 import ray
 
 from hola_ray.env.config import PursuitConfig
-from hola_ray.policies.learned import random_export
+from hola_ray.evaluation.rollout import rollout
+from hola_ray.evaluation.stats import episode_seeds
+from hola_ray.policies.learned import MLPPolicy, random_export
+from hola_ray.population.evaluators import (
+    EvaluatorPool,
+    chunks,
+    evaluate_team,
+    evaluate_teams,
+)
 from hola_ray.population.grapher import evaluate_edges, evaluate_edges_here
-from hola_ray.population.member import MemberPool
 from hola_ray.population.state import edge_seed
 
 ENV = PursuitConfig(horizon=150)
 NODES = range(5)
 EDGES = list(itertools.combinations(NODES, 3))  # 10 hyperedges
 EPISODES = 6
+PARTS = 4  # two chunks queued on each of the two actors
 
 
 EXPORTS = {node: random_export(ENV.obs_dim, seed=node, bias_scale=0.5) for node in NODES}
 
 
-def run(pool, workers, on_result=None):
+def seed_of(edge):
+    return edge_seed(0, 1, edge)
+
+
+def run(pool, on_result=None):
     return evaluate_edges(
         EDGES,
-        pool.ensure(EXPORTS),
+        pool,
         ray.put(EXPORTS),
         EPISODES,
-        seed_of=lambda e: edge_seed(0, 1, e),
-        workers=workers,
+        seed_of=seed_of,
+        parts=PARTS,
         progress=False,
         on_result=on_result,
     )
@@ -39,58 +51,90 @@ def run(pool, workers, on_result=None):
 
 @pytest.fixture(scope="module")
 def pool(ray_session):
-    """One member actor per node, shared by the tests (each actor's start costs seconds)."""
-    members = MemberPool(ENV.to_dict())
-    yield members
-    members.shutdown()
+    """Two evaluation actors, shared by the tests (each actor's start costs seconds)."""
+    actors = EvaluatorPool(ENV.to_dict(), workers=2)
+    yield actors
+    actors.shutdown()
 
 
 @pytest.fixture(scope="module")
 def baseline(pool):
-    results, stats = run(pool, workers=1)
+    results, stats = run(pool)
+    assert stats.retries == 0
     return results
 
 
-def test_weights_do_not_depend_on_the_worker_count(pool, baseline):
-    results, stats = run(pool, workers=2)
-    assert results == baseline and stats.retries == 0
-    assert [r.nodes for r in results] == EDGES
-    assert len({r.team_return for r in results}) > 1  # the members really differ
-    assert all(r.episodes == EPISODES for r in results)
+def test_hyperedges_are_cut_into_chunks_by_the_config_alone():
+    assert chunks(EDGES, 2) == [[0, 1, 2, 3, 4], [5, 6, 7, 8, 9]]
+    assert chunks(EDGES, 3) == [[0, 1, 2], [3, 4, 5, 6], [7, 8, 9]]
+    assert chunks(EDGES[:1], 4) == [[0]]  # never an empty chunk
+    assert sum(chunks(EDGES, 7), []) == list(range(len(EDGES)))
 
 
-def test_the_driver_plays_the_same_weights_as_the_member_actors(baseline):
+def test_the_weights_come_back_in_the_order_of_the_hyperedges(baseline):
+    assert [r.nodes for r in baseline] == EDGES
+    assert len({r.team_return for r in baseline}) > 1  # the members really differ
+    assert all(r.episodes == EPISODES for r in baseline)
+
+
+def test_the_driver_plays_the_same_weights_as_the_actors(baseline):
     results, stats = evaluate_edges_here(
-        EDGES, EXPORTS, ENV.to_dict(), EPISODES, lambda e: edge_seed(0, 1, e), progress=False
+        EDGES, EXPORTS, ENV.to_dict(), EPISODES, seed_of, parts=PARTS, progress=False
     )
     assert results == baseline
     assert (stats.edges, stats.episodes, stats.retries) == (len(EDGES), len(EDGES) * EPISODES, 0)
 
 
-def test_killing_members_mid_grapher_gives_the_same_weights(pool, baseline):
-    actors = pool.ensure(EXPORTS)
+def test_killing_actors_mid_grapher_gives_the_same_weights(pool, baseline):
     killed = []
 
-    def kill_all_but_one(k, result):
-        if not killed:
-            for node in list(NODES)[:-1]:
-                ray.kill(actors[node], no_restart=True)
-                killed.append(node)
+    def kill_the_other(chunk, results):
+        if not killed:  # the other actor dies with a chunk in flight and one queued
+            for k, actor in pool.actors().items():
+                if k != chunk % 2:
+                    ray.kill(actor, no_restart=True)
+                    killed.append(k)
 
-    results, stats = run(pool, workers=2, on_result=kill_all_but_one)
+    results, stats = run(pool, on_result=kill_the_other)
     assert killed and stats.retries >= 1
     assert results == baseline
-    # The pool replaces dead members for the next generation.
-    fresh = pool.ensure(EXPORTS)
-    assert ray.get([fresh[n].ping.remote() for n in NODES]) == list(NODES)
+    # The pool has replaced the dead actor for the next generation.
+    assert ray.get([a.ping.remote() for a in pool.actors().values()]) == [True, True]
 
 
 def test_a_hyperedge_is_a_set_of_members():
-    from hola_ray.population.member import evaluate_team
-
     a = evaluate_team(ENV.to_dict(), (0, 1, 2), EXPORTS, EPISODES, seed=3)
     b = evaluate_team(ENV.to_dict(), (2, 0, 1), EXPORTS, EPISODES, seed=3)
     c = evaluate_team(ENV.to_dict(), (0, 1, 2), EXPORTS, EPISODES, seed=4)
     assert (a.team_return, a.length) == (b.team_return, b.length)
     assert (a.team_return, a.length) != (c.team_return, c.length)  # the seed matters
     assert np.isfinite(a.team_return)
+
+
+def test_a_batched_chunk_plays_the_episodes_each_hyperedge_plays_alone():
+    """One rollout of ten hyperedges against each hyperedge played alone on the reference
+    path (every policy on every row of its seats, one forward pass each, as the Grapher
+    played before it batched): the same episodes, so the same outcomes but where the
+    stacked forward pass rounds an action's last bit differently and an episode parts."""
+    env = PursuitConfig()  # the full horizon: episodes that end at different times
+    episodes = 32
+    batched = evaluate_teams(env.to_dict(), EDGES, EXPORTS, episodes, [seed_of(e) for e in EDGES])
+    same = total = 0
+    for edge, result in zip(EDGES, batched, strict=True):
+        seed = seed_of(edge)
+        rng = np.random.default_rng(seed)
+        assignment = np.stack([rng.permutation(3) for _ in range(episodes)])
+        alone = rollout(
+            env,
+            [MLPPolicy(env, EXPORTS[v]) for v in sorted(edge)],
+            episodes,
+            assignment=assignment,
+            episode_seeds=episode_seeds(seed, episodes),
+            batched=False,
+        )
+        assert result.nodes == edge and result.episodes == episodes
+        assert abs(result.success - alone.success.mean()) <= 2 / episodes
+        assert abs(result.length - alone.length.mean()) <= 0.05 * alone.length.mean()
+        same += int(np.isclose(result.team_return, alone.team_return.mean(), rtol=1e-3))
+        total += 1
+    assert same >= 0.8 * total, f"{same} of {total} hyperedges kept their weight"

@@ -1,0 +1,188 @@
+"""Evaluation actors: a run's hyperedges and monitors played in a few large batches.
+
+A generation's hyperedges are cut into as many chunks as the run has evaluation actors
+(`grapher.workers`), and each chunk is one vectorised rollout (`evaluate_teams`): every
+episode of every hyperedge in it stepped at once, the learned members in one stacked
+forward pass, finished episodes dropped from the forward passes. The same actors play the
+figures that only monitor (validation, the population as a team) while the next
+generation trains (`EvaluatorPool.submit`). An actor is started once per run, not once per
+member, and its start (imports, the simulator's compiled kernels) overlaps the Oracle's.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import ray
+
+from hola_ray.population.state import EdgeResult
+from hola_ray.progress import pin_threads
+
+
+def evaluate_team(
+    env_config: Mapping[str, Any],
+    team: Sequence[int],
+    exports: Mapping[int, Mapping[str, Any]],
+    episodes: int,
+    seed: int,
+) -> EdgeResult:
+    """One hyperedge's weight: `episodes` episodes of the l policies of `team` (a chunk of
+    one hyperedge, `evaluate_teams`)."""
+    (result,) = evaluate_teams(env_config, [tuple(team)], exports, episodes, [seed])
+    return result
+
+
+def evaluate_teams(
+    env_config: Mapping[str, Any],
+    teams: Sequence[Sequence[int]],
+    exports: Mapping[int, Mapping[str, Any]],
+    episodes: int,
+    seeds: Sequence[int],
+) -> list[EdgeResult]:
+    """The weights of several hyperedges, played as one rollout of `episodes` episodes each.
+
+    Each episode of hyperedge k seats its l members in a random order over the pursuer
+    slots (drawn from `seeds[k]`, as are its episodes), so no member is tied to a slot; a
+    team is a set, so the order it is listed in does not matter. A hyperedge's episodes are
+    the same whichever others share its rollout; its figures are the same to within the
+    float rounding of the stacked forward pass.
+    """
+    from hola_ray.env.config import PursuitConfig
+    from hola_ray.evaluation.metrics import team_figures
+    from hola_ray.evaluation.rollout import rollout
+    from hola_ray.evaluation.stats import episode_seeds
+    from hola_ray.policies.learned import MLPPolicy
+
+    config = PursuitConfig.from_dict(env_config)
+    for team in teams:
+        if len(team) != config.n_pursuers:
+            raise ValueError(f"a team holds {config.n_pursuers} members, got {list(team)}")
+    nodes = sorted({int(v) for team in teams for v in team})
+    index = {v: k for k, v in enumerate(nodes)}
+    policies = [MLPPolicy(config, exports[v], name=f"node_{v}") for v in nodes]
+    assignment, played = [], []
+    for team, seed in zip(teams, seeds, strict=True):
+        members = np.array([index[v] for v in sorted(team)])
+        rng = np.random.default_rng(seed)
+        assignment.append(members[np.stack([rng.permutation(len(team)) for _ in range(episodes)])])
+        played.append(episode_seeds(seed, episodes))
+    result = rollout(
+        config,
+        policies,
+        episodes * len(teams),
+        assignment=np.concatenate(assignment),
+        episode_seeds=np.concatenate(played),
+        batch_size=max(1024, episodes * len(teams)),
+    )
+    return [
+        EdgeResult(
+            nodes=tuple(int(v) for v in team),
+            episodes=episodes,
+            **team_figures(result.part(k * episodes, (k + 1) * episodes)),
+        )
+        for k, team in enumerate(teams)
+    ]
+
+
+def chunks(edges: Sequence[tuple[int, ...]], count: int) -> list[list[int]]:
+    """The indices of `edges` cut into at most `count` contiguous chunks of near-equal size:
+    how a generation's hyperedges are batched (by the run's config, never by which actor is
+    alive, so the weights do not depend on failures or scheduling)."""
+    count = max(1, min(count, len(edges)))
+    bounds = np.linspace(0, len(edges), count + 1).round().astype(int)
+    return [list(range(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a]
+
+
+NICENESS = 10
+"""how far below the other processes an evaluation actor runs (`os.nice`): on a busy node the
+CFS scheduler gives a niceness-10 process about a tenth of a core's share"""
+
+
+@ray.remote(max_restarts=1, max_task_retries=1)
+class Evaluator:
+    """One evaluation process of a run: plays chunks of hyperedges and monitors. Each actor
+    runs single-threaded, so parallelism comes from actors side by side."""
+
+    def __init__(self, env_config: Mapping[str, Any]):
+        os.environ.setdefault("OMP_NUM_THREADS", "1")
+        pin_threads(1)
+        # below the Oracle's processes: monitors played while a generation trains take the
+        # CPU time its env runners and learner leave, not theirs
+        os.nice(NICENESS)
+        self.env_config = dict(env_config)
+        # Pay the simulator's compilation (or cache load) and the stacked forward's first
+        # call now, while the run starts, rather than inside the first hyperedges.
+        from hola_ray.env.config import PursuitConfig
+        from hola_ray.policies.learned import random_export
+
+        config = PursuitConfig.from_dict(self.env_config)
+        exports = {v: random_export(config.obs_dim, seed=v) for v in range(2)}
+        team = (0,) * (config.n_pursuers - 1) + (1,)
+        evaluate_teams(self.env_config, [team], exports, 1, [0])
+
+    def ping(self) -> bool:
+        return True
+
+    def play_edges(
+        self,
+        teams: Sequence[Sequence[int]],
+        exports: Mapping[int, Mapping[str, Any]],
+        episodes: int,
+        seeds: Sequence[int],
+    ) -> list[EdgeResult]:
+        """A chunk of hyperedges (`evaluate_teams`)."""
+        return evaluate_teams(self.env_config, teams, exports, episodes, seeds)
+
+    def call(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """`fn(*args)` in this process (a monitor: validation, the population as a team)."""
+        return fn(*args)
+
+
+class EvaluatorPool:
+    """The driver's handles on a run's evaluation actors, started without waiting for them
+    and recreated when one died."""
+
+    def __init__(self, env_config: Mapping[str, Any], workers: int, run_name: str = ""):
+        self.env_config = dict(env_config)
+        self.workers = workers
+        self.run_name = run_name
+        self._actors: dict[int, ray.actor.ActorHandle] = {}
+        self._turn = 0
+
+    def start(self) -> None:
+        """Start every missing actor (returns at once; a call waits for its actor)."""
+        for k in range(self.workers):
+            if k not in self._actors:
+                name = f"evaluator:{self.run_name}:{k}" if self.run_name else None
+                self._actors[k] = Evaluator.options(name=name, namespace="hola_ray").remote(
+                    self.env_config
+                )
+
+    def actors(self) -> dict[int, ray.actor.ActorHandle]:
+        """Every actor, started if missing."""
+        self.start()
+        return dict(self._actors)
+
+    def replace(self, k: int, dead: ray.actor.ActorHandle) -> ray.actor.ActorHandle:
+        """Actor k, started afresh if it is still `dead` (a call on it failed); another call
+        that failed on the same actor finds it replaced already."""
+        if self._actors.get(k) is dead:
+            del self._actors[k]
+            ray.kill(dead, no_restart=True)
+        self.start()
+        return self._actors[k]
+
+    def submit(self, fn: Callable[..., Any], *args: Any) -> ray.ObjectRef:
+        """`fn(*args)` on the next actor in turn, without waiting."""
+        actors = self.actors()
+        k = sorted(actors)[self._turn % len(actors)]
+        self._turn += 1
+        return actors[k].call.remote(fn, *args)
+
+    def shutdown(self) -> None:
+        for actor in self._actors.values():
+            ray.kill(actor, no_restart=True)
+        self._actors.clear()
