@@ -9,6 +9,15 @@ per connector here, and an algorithm builds 20–30 connectors (its learner pipe
 each env runner's two), so 3–6 s per Oracle built, in the driver and in every env runner.
 The frame it reads is `sys._getframe(1)` of the same call: replaced here by that, with the
 same recorded arguments (tested against RLlib's own in tests/oracle/test_rllib_fixes.py).
+
+`light_seeding`: RLlib seeds torch in every algorithm, learner and env runner
+(`update_global_seed_if_necessary` → `set_torch_seed`), which calls
+`torch.use_deterministic_algorithms(True)`; that function imports `torch._inductor.config`
+(1.4 s here, in the driver and in every env runner, at every start) only to set the flag
+that `torch.compile`'s inductor reads. The fix sets the same eager-mode flag
+(`torch._C._set_deterministic_algorithms`) and the inductor's flag only when the inductor
+is loaded already; what the eager ops compute is the same (tested in the same file).
+
 Applied by `hola_ray.oracle` (the Oracle, its env runners) and the D3QN trainer, once per
 process; RLlib other than the version it was written for is left alone.
 """
@@ -59,4 +68,40 @@ def fast_connectors() -> bool:
     __init__._fast = True
     __init__._rllib = ConnectorV2.__init__
     ConnectorV2.__init__ = __init__
+    return True
+
+
+def light_seeding() -> bool:
+    """Seed torch as RLlib's `set_torch_seed` does, without importing the inductor to set a
+    flag nothing here reads; True when the fix is in place (now or before)."""
+    import ray
+    from ray.rllib.utils.debug import deterministic
+
+    if getattr(deterministic.set_torch_seed, "_light", False):
+        return True
+    if ray.__version__ != RLLIB_VERSION:
+        return False
+    rllib_set_torch_seed = deterministic.set_torch_seed
+
+    def set_torch_seed(seed: int | None = None) -> None:
+        # RLlib 2.60's set_torch_seed on a CPU build, but the inductor's import
+        import torch
+
+        if seed is None:
+            return
+        if torch.version.cuda is not None:
+            rllib_set_torch_seed(seed)
+            return
+        torch.manual_seed(seed)
+        torch._C._set_deterministic_algorithms(True, warn_only=False)
+        inductor = sys.modules.get("torch._inductor.config")
+        if inductor is not None:
+            inductor.deterministic = True
+        torch.backends.cudnn.deterministic = True
+        torch.backends.cudnn.benchmark = False
+
+    set_torch_seed.__doc__ = rllib_set_torch_seed.__doc__
+    set_torch_seed._light = True
+    set_torch_seed._rllib = rllib_set_torch_seed
+    deterministic.set_torch_seed = set_torch_seed
     return True

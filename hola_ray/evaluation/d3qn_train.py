@@ -283,9 +283,10 @@ def algorithm_config(run: D3QNRun):
 def build(run: D3QNRun):
     """RLlib's DQN for `run`, every random draw seeded from the run's seed: RLlib seeds its
     env runners and learner, but its replay buffer draws from an unseeded generator."""
-    from hola_ray.rllib_fixes import fast_connectors
+    from hola_ray.rllib_fixes import fast_connectors, light_seeding
 
     fast_connectors()
+    light_seeding()
     algo = algorithm_config(run).build_algo()
     algo.local_replay_buffer.rng = np.random.default_rng(run.seed)
     return algo

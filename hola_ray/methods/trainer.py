@@ -170,6 +170,9 @@ class Trainer:
                     self._generation(g, oracle)
                     written.append(g)
                     self._saved(g)
+            if oracle is not None:  # its processes go while the last monitors play
+                oracle.stop()
+                oracle = None
             if self._complete():  # the last generation's monitors
                 self._saved(written[-1])
         finally:

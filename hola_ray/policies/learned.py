@@ -294,16 +294,32 @@ class MLPStack:
     @torch.no_grad()
     def logits(self, x: torch.Tensor, slot: np.ndarray) -> torch.Tensor:
         """Distribution inputs [N, out] of rows x [N, in] (features appended), row i played
-        by actor slot[i]."""
+        by actor slot[i].
+
+        An actor with over twice the mean group's rows (the Grapher's candidate, in every
+        hyperedge) has its rows cut into pieces of about the mean's size, each a group of
+        its own with the actor's layers, so the padded batch is not mostly padding.
+        """
         order = np.argsort(slot, kind="stable")
         grouped = slot[order]
         counts = np.bincount(grouped, minlength=self.size)
-        rank = np.arange(grouped.size) - (np.cumsum(counts) - counts)[grouped]
-        k, r = torch.from_numpy(grouped), torch.from_numpy(rank)
-        h = x.new_zeros((self.size, int(counts.max()), x.shape[1]))
+        mean = -(-grouped.size // max(int((counts > 0).sum()), 1))
+        # groups per actor: one, or pieces of about the mean when it has over twice that
+        pieces = np.where(counts > 2 * mean, -(-counts // max(mean, 1)), 1)
+        per_piece = -(-counts // pieces)
+        starts = np.cumsum(counts) - counts
+        rank = np.arange(grouped.size) - starts[grouped]
+        piece = (np.cumsum(pieces) - pieces)[grouped] + rank // per_piece[grouped]
+        row = rank % per_piece[grouped]
+        actor = torch.from_numpy(np.repeat(np.arange(self.size), pieces))
+        k, r = torch.from_numpy(piece), torch.from_numpy(row)
+        h = x.new_zeros((len(actor), int(per_piece.max()), x.shape[1]))
         h[k, r] = x[torch.from_numpy(order)]
+        split = len(actor) > self.size
         last = len(self.weights) - 1
         for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            if split:
+                w, b = w[actor], b[actor]
             h = torch.baddbmm(b, h, w.transpose(1, 2))
             if i < last:
                 h = self.activation(h)

@@ -107,11 +107,12 @@ class Evaluator:
     runs single-threaded, so parallelism comes from actors side by side."""
 
     def __init__(self, env_config: Mapping[str, Any]):
+        # below the Oracle's processes, from the start (its imports compete with the env
+        # runner's): monitors played while a generation trains take the CPU time its env
+        # runners and learner leave, not theirs
+        os.nice(NICENESS)
         os.environ.setdefault("OMP_NUM_THREADS", "1")
         pin_threads(1)
-        # below the Oracle's processes: monitors played while a generation trains take the
-        # CPU time its env runners and learner leave, not theirs
-        os.nice(NICENESS)
         self.env_config = dict(env_config)
         # Pay the simulator's compilation (or cache load) and the stacked forward's first
         # call now, while the run starts, rather than inside the first hyperedges.
