@@ -115,6 +115,17 @@ def mean_policy_logp(rl_module, members: Sequence[str], obs, actions) -> torch.T
     return torch.logsumexp(torch.stack(logps), dim=0) - math.log(len(members))
 
 
+_LOSS_COLUMNS = (
+    Columns.OBS,
+    Columns.ACTIONS,
+    Columns.ACTION_LOGP,
+    Columns.LOSS_MASK,
+    Postprocessing.ADVANTAGES,
+    Postprocessing.VALUE_TARGETS,
+)
+"""what `OracleLearner.compute_loss_for_module` and the module's `forward_train` read"""
+
+
 class OracleLearner(PPOTorchLearner):
     """PPO learner of the Oracle and of MEP pre-training.
 
@@ -147,6 +158,10 @@ class OracleLearner(PPOTorchLearner):
     trained module acted in the updates' episodes (each seat it played)"""
     gradient_steps: int = 0
     """Minibatch gradient steps applied to a trained module so far"""
+    step_s: float = 0.0
+    """Seconds of `update_s` spent in the minibatch steps themselves (forward, loss,
+    backward, clip, Adam: `_uncompiled_update`); the rest is the learner pipeline (GAE)
+    and RLlib's loop around the steps"""
 
     def update(self, *args, training_data=None, **kwargs):
         start = time.perf_counter()
@@ -190,8 +205,13 @@ class OracleLearner(PPOTorchLearner):
             def mean(x: torch.Tensor) -> torch.Tensor:
                 return torch.sum(x[mask]) / num_valid
 
+            def loss_mean(x: torch.Tensor) -> torch.Tensor:
+                # the masked rows as zeros rather than cut out (a gather less per step):
+                # the same gradient, the loss itself to within its float rounding
+                return torch.sum(torch.where(mask, x, 0.0)) / num_valid
+
         else:
-            mean = torch.mean
+            mean = loss_mean = torch.mean
         dist = module.get_train_action_dist_cls().from_logits(fwd_out[Columns.ACTION_DIST_INPUTS])
         ratio = torch.exp(dist.logp(batch[Columns.ACTIONS]) - batch[Columns.ACTION_LOGP])
         advantages = batch[Postprocessing.ADVANTAGES]
@@ -206,13 +226,13 @@ class OracleLearner(PPOTorchLearner):
         coeff = self.entropy_coeff_schedulers_per_module[module_id].get_current_value()
         if coeff:
             per_row = per_row - coeff * dist.entropy()
-        total = mean(per_row)
+        total = loss_mean(per_row)
         kl = None
         if config.use_kl_loss:
             prev = module.get_exploration_action_dist_cls().from_logits(
                 batch[Columns.ACTION_DIST_INPUTS]
             )
-            kl = mean(prev.kl(dist))
+            kl = loss_mean(prev.kl(dist))
             total = total + self.curr_kl_coeffs_per_module[module_id] * kl
 
         def stats() -> dict[str, torch.Tensor]:
@@ -241,6 +261,9 @@ class OracleLearner(PPOTorchLearner):
         for module_id, stats in self._last_stats.items():
             self.metrics.log_dict(stats(), key=module_id, window=1)
         self._last_stats = {}
+        for key, norm in self._last_norms.items():  # the last minibatch's, as window 1 keeps
+            self.metrics.log_value(key, norm, window=1)
+        self._last_norms = {}
         super().after_gradient_based_update(timesteps=timesteps)
 
     def configure_optimizers_for_module(self, module_id, config=None) -> None:
@@ -277,7 +300,11 @@ class OracleLearner(PPOTorchLearner):
             )
         batch = self._make_batch_if_necessary(training_data=training_data)
         columns = {
-            mid: {k: v for k, v in module_batch.items() if isinstance(v, torch.Tensor)}
+            mid: {
+                k: v
+                for k, v in module_batch.items()
+                if isinstance(v, torch.Tensor) and k in self._read_columns(mid)
+            }
             for mid, module_batch in batch.policy_batches.items()
             if self.should_module_be_updated(mid, batch)
         }
@@ -296,6 +323,15 @@ class OracleLearner(PPOTorchLearner):
             shuffle=shuffle_batch_per_epoch or num_epochs > 1,
             num_total_minibatches=num_total_minibatches,
         )
+
+    def _read_columns(self, module_id: str) -> frozenset[str]:
+        """The train batch's columns the lean loss and the module's forward pass read: the
+        minibatches gather these alone (the episodes' rewards, terminations, sequence
+        numbers are GAE's, done with by then)."""
+        read = set(_LOSS_COLUMNS)
+        if self.config.get_config_for_module(module_id).use_kl_loss:
+            read.add(Columns.ACTION_DIST_INPUTS)  # the sampler's distribution, for the KL
+        return frozenset(read)
 
     def _log_metrics(self, batch) -> None:
         if not isinstance(batch, Minibatch):
@@ -323,6 +359,14 @@ class OracleLearner(PPOTorchLearner):
         self._minibatches = 0
 
     def _uncompiled_update(self, batch, **kwargs):
+        start = time.perf_counter()
+        try:
+            return self._step(batch)
+        finally:
+            self.step_s += time.perf_counter() - start
+
+    def _step(self, batch):
+        """One minibatch's forward pass, loss, backward pass, clip and optimizer steps."""
         if not self._lean:
             self._compute_off_policyness(batch)
         fwd_out = self.module.forward_train(batch)
@@ -346,7 +390,10 @@ class OracleLearner(PPOTorchLearner):
                 if not grads:
                     continue
                 norm = torch.linalg.vector_norm(torch.stack(torch._foreach_norm(grads)))
-                self.metrics.log_value((mid, f"gradients_{name}_global_norm"), norm, window=1)
+                if self._lean:  # logged once per update (`after_gradient_based_update`)
+                    self._last_norms[(mid, f"gradients_{name}_global_norm")] = norm
+                else:
+                    self.metrics.log_value((mid, f"gradients_{name}_global_norm"), norm, window=1)
                 if not torch.isfinite(norm):
                     self.metrics.log_value((mid, "num_nonfinite_gradient_steps"), 1, reduce="sum")
                     continue
@@ -430,6 +477,8 @@ class OracleLearner(PPOTorchLearner):
         """oracle.update: lean, or RLlib's own pipeline, iterator and loss"""
         self._last_stats: dict[str, Any] = {}
         """module id → the statistics of its last minibatch's loss, logged after the update"""
+        self._last_norms: dict[tuple[str, str], torch.Tensor] = {}
+        """(module id, key) → its last minibatch's gradient norm, logged after the update"""
         self._trained_rows: dict[str, int] = {}
         self._env_steps_trained = self._minibatches = 0
         """this update's trained rows per module, env steps and minibatches, so far"""

@@ -80,7 +80,7 @@ class Minibatches:
             batches, rows = {}, {}
             for mid, cols in self.columns.items():
                 index = streams[mid].take(self.minibatch)
-                batches[mid] = {k: v[index] for k, v in cols.items()}
+                batches[mid] = {k: torch.index_select(v, 0, index) for k, v in cols.items()}
                 rows[mid] = len(index)
             yield Minibatch(batches, rows, self.env_steps)
 
