@@ -75,60 +75,23 @@ def load_state(path: Path) -> dict[str, np.ndarray]:
 
 
 def bare_torch_update(config, rows: int, repeats: int = 2) -> float:
-    """Seconds of one PPO iteration in plain torch: `rows` learner transitions, the run's
-    minibatch, epochs, network, Beta head, clipped loss, value loss, Adam and clip."""
-    import torch
+    """Seconds of one PPO iteration in plain torch: as many gradient steps as `rows` learner
+    transitions make with the run's minibatch and epochs, each `update_step.bare_step` (the
+    run's network, Beta head, clipped loss, value loss, clip and Adam)."""
+    import math
 
     from hola_ray.env.layout import ObsLayout
-    from hola_ray.evaluation.probe import reference_observations
-    from hola_ray.policies.learned import proximity_features
 
-    o, env = config.oracle, config.env
-    features = o.model_features(env) or {"indices": [], "gain": 0.0}
-    obs_dim = ObsLayout.from_config(env).dim + len(features["indices"])
+    sys.path.insert(0, str(Path(__file__).parent))
+    from update_step import bare_step
 
-    def mlp(out: int) -> torch.nn.Sequential:
-        layers, width = [], obs_dim
-        for h in o.hidden:
-            layers += [torch.nn.Linear(width, h), torch.nn.Tanh()]
-            width = h
-        return torch.nn.Sequential(*layers, torch.nn.Linear(width, out))
-
-    torch.manual_seed(0)
-    actor, critic = mlp(2), mlp(1)
-    params = [*actor.parameters(), *critic.parameters()]
-    optim = torch.optim.Adam(params, lr=o.lr, fused=True)
-    ref = torch.as_tensor(reference_observations(env), dtype=torch.float32)
-    obs_raw = ref[torch.arange(rows) % len(ref)]
-    gen = torch.Generator().manual_seed(0)
-    actions = torch.rand(rows, 1, generator=gen) * 0.98 + 0.01
-    old_logp = torch.full((rows,), -0.5)
-    advantages = torch.randn(rows, generator=gen)
-    targets = torch.randn(rows, generator=gen)
-
-    def iteration() -> None:
-        obs = proximity_features(obs_raw, features["indices"], features["gain"])
-        for _ in range(o.epochs):
-            order = torch.randperm(rows, generator=gen)
-            for start in range(0, rows - o.minibatch + 1, o.minibatch):
-                idx = order[start : start + o.minibatch]
-                c = torch.nn.functional.softplus(actor(obs[idx])) + 1.0
-                dist = torch.distributions.Beta(c[:, 0:1], c[:, 1:2])
-                logp = dist.log_prob(actions[idx]).sum(-1)
-                ratio = torch.exp(logp - old_logp[idx])
-                adv = advantages[idx]
-                surrogate = torch.min(ratio * adv, torch.clamp(ratio, 1 - o.clip, 1 + o.clip) * adv)
-                value = critic(obs[idx]).squeeze(-1)
-                loss = -surrogate.mean() + o.vf_coef * ((value - targets[idx]) ** 2).mean()
-                optim.zero_grad(set_to_none=True)
-                loss.backward()
-                torch.nn.utils.clip_grad_norm_(params, o.grad_clip or 1e9)
-                optim.step()
-
-    iteration()  # warm-up
+    o = config.oracle
+    step = bare_step(config, ObsLayout.from_config(config.env).dim)
+    steps = max(1, math.ceil(rows * o.epochs / o.minibatch))
+    step()  # warm-up
     start = time.perf_counter()
-    for _ in range(repeats):
-        iteration()
+    for _ in range(repeats * steps):
+        step()
     return (time.perf_counter() - start) / repeats
 
 
