@@ -519,3 +519,47 @@ def test_an_overlapped_oracle_samples_during_the_update_and_never_trains_on_an_o
             assert all(partners == {target} for _, partners in seen), seen
     finally:
         oracle.stop()
+
+
+def test_the_lean_pipeline_builds_rllibs_train_batch(local_learner, oracle):
+    """The learner pipeline with `AddOneTsInArrays` in place of RLlib's
+    AddOneTsToEpisodesAndTruncate builds the same train batch from the same episodes: every
+    column, value and row order (GAE's advantages and value targets included)."""
+    import copy
+
+    from ray.rllib.connectors.learner.add_one_ts_to_episodes_and_truncate import (
+        AddOneTsToEpisodesAndTruncate,
+    )
+
+    from hola_ray.oracle.mep import AddOneTsInArrays
+
+    learner = local_learner(oracle.algo)
+    lean = learner._learner_connector
+    assert any(isinstance(p, AddOneTsInArrays) for p in lean.connectors)
+    rllib = copy.deepcopy(lean)
+    rllib.insert_before(AddOneTsInArrays, AddOneTsToEpisodesAndTruncate())
+    rllib.remove(AddOneTsInArrays)
+    assert [type(p).__name__ for p in rllib.connectors][0] == "AddOneTsToEpisodesAndTruncate"
+    oracle.set_phi({m: 1.0 / len(oracle.members) for m in oracle.members})
+    (episodes,) = oracle.algo.env_runner_group.foreach_env_runner(
+        lambda runner: runner.sample(num_timesteps=400, force_reset=True),
+        local_env_runner=False,
+    )
+    assert any(ep.is_done for ep in episodes) and any(not ep.is_done for ep in episodes)
+
+    def built(pipeline) -> dict:
+        return pipeline(
+            rl_module=learner.module,
+            batch={},
+            episodes=copy.deepcopy(episodes),
+            shared_data={},
+            metrics=learner.metrics,
+        )
+
+    ours, theirs = built(lean), built(rllib)
+    assert ours.keys() == theirs.keys() == {LEARNER}
+    assert ours[LEARNER].keys() == theirs[LEARNER].keys()
+    for column, value in theirs[LEARNER].items():
+        assert torch.equal(torch.as_tensor(ours[LEARNER][column]), torch.as_tensor(value)), column
+    mask = torch.as_tensor(ours[LEARNER]["loss_mask"])
+    assert 0 < int((~mask).sum()) < len(mask)  # one masked bootstrap row per chunk
