@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from hola_ray.evaluation.rollout import rollout
 from hola_ray.oracle import Oracle
 from hola_ray.oracle.config import Seating
+from hola_ray.population.evaluators import evaluate_teams
 from hola_ray.population.state import Decision, Population
 
 if TYPE_CHECKING:
@@ -250,16 +250,18 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
 def members_as_copies(config: RunConfig, oracle: Oracle) -> list[dict[str, float]]:
     """Each of the Oracle's trained members as a team of its own copies, over
     `pretrain.until_episodes` episodes (the same episodes for every member and check):
-    success and collision."""
+    success and collision. Every member's episodes are one rollout (`evaluate_teams`)."""
     states = oracle.weights(oracle.members)
-    out = []
-    for m in oracle.members:
-        team = [oracle.policy(states[m])] * config.env.n_pursuers
-        played = rollout(config.env, team, config.pretrain.until_episodes, seed=JUDGE_SEED)
-        out.append(
-            {"success": float(played.success.mean()), "collision": float(played.collision.mean())}
-        )
-    return out
+    exports = {k: oracle.export_state(states[m]) for k, m in enumerate(oracle.members)}
+    teams = [(k,) * config.env.n_pursuers for k in exports]
+    judged = evaluate_teams(
+        config.env.to_dict(),
+        teams,
+        exports,
+        config.pretrain.until_episodes,
+        [JUDGE_SEED] * len(teams),
+    )
+    return [{"success": r.success, "collision": r.collision} for r in judged]
 
 
 JUDGE_SEED = 7_000_003
