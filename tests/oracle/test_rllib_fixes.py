@@ -64,34 +64,38 @@ def test_fast_connectors_record_what_rllibs_own_init_records():
 
 SEEDED = """
 import sys, json, torch
-from ray.rllib.utils.debug import update_global_seed_if_necessary
-if sys.argv[1] == "light":
-    from hola_ray.rllib_fixes import light_seeding
-    assert light_seeding()
-update_global_seed_if_necessary("torch", 1234)
-print(json.dumps({
-    "draws": torch.randn(5).tolist(),
-    "deterministic": torch.are_deterministic_algorithms_enabled(),
-    "warn_only": torch.is_deterministic_algorithms_warn_only_enabled(),
-    "cudnn": [torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark],
-    "inductor_loaded": "torch._inductor.config" in sys.modules,
-}))
+from ray.rllib.utils.debug import deterministic, update_global_seed_if_necessary
+from hola_ray.rllib_fixes import light_seeding
+
+def seeded():
+    update_global_seed_if_necessary("torch", 1234)
+    return {
+        "draws": torch.randn(5).tolist(),
+        "deterministic": torch.are_deterministic_algorithms_enabled(),
+        "warn_only": torch.is_deterministic_algorithms_warn_only_enabled(),
+        "cudnn": [torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark],
+        "inductor_loaded": "torch._inductor.config" in sys.modules,
+    }
+
+assert light_seeding()  # torch loaded, the inductor not yet
+light = seeded()
+deterministic.set_torch_seed = deterministic.set_torch_seed._rllib  # RLlib's own again
+torch._C._set_deterministic_algorithms(False)
+rllib = seeded()
+print(json.dumps({"light": light, "rllib": rllib}))
 """
 
 
 def test_light_seeding_seeds_torch_as_rllib_does_without_loading_the_inductor():
-    """RLlib's own seeding and the light one, each in a fresh interpreter: the same draws
-    and the same deterministic-algorithms setting; only RLlib's loads the inductor."""
+    """In a fresh interpreter, the light seeding and then RLlib's own: the same draws and
+    the same deterministic-algorithms setting; only RLlib's loads the inductor."""
     import json
     import subprocess
     import sys
 
-    def seeded(how: str) -> dict:
-        out = subprocess.run(
-            [sys.executable, "-c", SEEDED, how], capture_output=True, text=True, check=True
-        )
-        return json.loads(out.stdout.strip().splitlines()[-1])
-
-    rllib, light = seeded("rllib"), seeded("light")
-    assert rllib.pop("inductor_loaded") and not light.pop("inductor_loaded")
+    out = subprocess.run([sys.executable, "-c", SEEDED], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    seen = json.loads(out.stdout.strip().splitlines()[-1])
+    light, rllib = seen["light"], seen["rllib"]
+    assert not light.pop("inductor_loaded") and rllib.pop("inductor_loaded")
     assert light == rllib and rllib["deterministic"]
