@@ -78,6 +78,7 @@ ROOT = Path(__file__).resolve().parent.parent
 # here only runs later; one wrongly listed compiles the kernels itself: no result changes.
 NO_SIMULATOR = (
     "tests/test_layers.py",
+    "tests/test_clock.py",
     "tests/test_progress.py",
     "tests/test_interrupt.py",
     "tests/test_cli_errors.py",

@@ -106,3 +106,30 @@ def test_an_export_carries_its_scenario_and_loads_without_one(tmp_path):
     torch.save(constant_export((0.0, 0.0)), old)
     with pytest.raises(ValueError, match=r"load it with MLPPolicy.load\(config, path\)"):
         MLPPolicy.load(old)
+
+
+def test_a_stack_plays_each_actor_as_the_actor_plays_alone():
+    """`MLPStack`: the rows of several actors in one batched pass, an actor with most of the
+    rows cut into pieces, give each actor's own logits and actions to within the batched
+    matmul's rounding."""
+    from hola_ray.policies.learned import MLPStack, random_export
+
+    actors = [
+        MLPPolicy(CONFIG, random_export(LAYOUT.dim, hidden=(32, 32), seed=k)) for k in range(4)
+    ]
+    stack = MLPStack(actors)
+    rng = np.random.default_rng(1)
+    obs = rng.uniform(-1, 1, (600, LAYOUT.dim)).astype(np.float32)
+    for slot in (
+        rng.integers(0, 4, 600),  # balanced
+        np.where(rng.uniform(size=600) < 0.7, 3, rng.integers(0, 3, 600)),  # one dominates
+    ):
+        logits = stack.logits(stack.with_features(torch.from_numpy(obs)), slot)
+        actions = stack.act(obs, slot)
+        for k, actor in enumerate(actors):
+            rows = slot == k
+            assert rows.any()
+            torch.testing.assert_close(logits[rows], actor.logits(obs[rows]), rtol=0, atol=1e-6)
+            np.testing.assert_allclose(actions[rows], actor.act(obs[rows]), rtol=0, atol=1e-6)
+    with pytest.raises(ValueError, match="one layout"):
+        MLPStack([actors[0], MLPPolicy(CONFIG, random_export(LAYOUT.dim, hidden=(16,)))])

@@ -197,3 +197,25 @@ def test_a_run_directory_file_that_would_run_code_is_refused(tmp_path):
     said = str(err.value)
     assert "\n" not in said and str(run.member_state(1)) in said and "posix.system" in said
     assert not witness.exists()
+
+
+def test_a_generations_monitors_join_its_row_and_a_run_without_them_is_not_finished(tmp_path):
+    """Monitors are written beside a saved generation (monitors.json) and joined into its
+    metrics row; until then the row says `monitored: 0` and the run is not finished. A row
+    that never said so (written before monitors came apart) counts as monitored."""
+    run = RunDir(tmp_path / "run")
+    run.create("method: hola\n")
+    run.write_generation(0, {"metrics.json": {"generation": 0, "population_success": 0.9}}, None)
+    assert run.monitored(0)  # an old row: no `monitored` key
+    row = {"generation": 1, "monitored": 0, "learner_success": 0.5, "learner_collision": 0.2}
+    run.write_generation(1, {"metrics.json": row}, {"w": 1})
+    run.save_learner({"w": 1})
+    run.save_learner_info({"generation": 1})
+    assert not run.monitored(1) and not run.finished(1)
+    assert run.metrics(1) == row
+    run.complete(1, {"monitored": 1, "val_success": 0.75, "val_collision": 0.1})
+    assert run.monitored(1) and run.finished(1)
+    assert run.metrics(1) == row | {"monitored": 1, "val_success": 0.75, "val_collision": 0.1}
+    assert run.read_json(1, "metrics.json") == row  # the committed row is never rewritten
+    csv_row = list(csv.DictReader(run.metrics_csv.open()))[1]
+    assert csv_row["val_success"] == "0.75" and csv_row["monitored"] == "1"
