@@ -97,3 +97,25 @@ def test_one_stateful_policy_in_several_seats_plays_as_separate_copies(mid):
         np.testing.assert_array_equal(getattr(c, field), getattr(b, field), err_msg=field)
     # and one recorded episode
     assert record(one, [shared] * 3, seed=4).metrics == record(one, copies, seed=4).metrics
+
+
+def test_the_batched_path_plays_the_episodes_of_the_reference_path():
+    """A learner among drawn teammates of every kind (learned, hand-written, D3QN-G with its
+    per-row state), as validation and the zero-shot evaluation play them: the batched path
+    (learned policies stacked, stateless ones asked for running episodes only) against the
+    reference path (every policy on every row it seats): the same episodes, so the same
+    outcomes but where an action's last bit rounds apart and an episode parts."""
+    from hola_ray.evaluation.pools import load_pool, load_validation
+    from hola_ray.evaluation.teams import draw_teams
+
+    one = PursuitConfig(n_evaders=1)
+    validation = list(load_validation("validation", one).values())
+    members = [*validation, *load_pool("het", one).values()]  # learned, APF-A, Greedy, D3QN-G
+    learner = validation[0]
+    teams = draw_teams(np.random.default_rng(5), 200, 3, len(members))
+    policies = [learner, *members]
+    a = rollout(one, policies, 200, assignment=teams, seed=11)
+    b = rollout(one, policies, 200, assignment=teams, seed=11, batched=False)
+    same = (a.success == b.success) & (a.collision == b.collision) & (a.length == b.length)
+    assert same.mean() >= 0.95, f"{same.mean():.0%} of episodes alike"
+    assert abs(a.success.mean() - b.success.mean()) <= 0.03
