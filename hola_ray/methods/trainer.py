@@ -10,10 +10,9 @@ method's `Rules` decide. A self-play method has no population: the Oracle seats 
 in every slot and the learner is judged by its own team's rollout. The driver only
 sequences the phases; the population lives in the coordinator actor, the hyperedge
 evaluations and the monitors in evaluation actors, the PPO in RLlib's env runners and
-learner. Every method
-leaves `learner.pt` (the latest learner) and `best.pt` with `best.json` (the generation
-whose learner scored best in its judging).
-"""
+learner. Every method leaves `learner.pt` (the latest learner) and `best.pt` with
+`best.json` (the generation whose learner did best with the validation teammates, or in
+its own judging without them)."""
 
 from __future__ import annotations
 
