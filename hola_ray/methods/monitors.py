@@ -167,20 +167,27 @@ class Monitoring:
         if learner is not None and c.validation.enabled:
             calls.append((validation, c, dict(learner)))
         if self.pool is None:
-            self.pending = (g, [fn(*args) for fn, *args in calls])
+            self.pending = (g, [(call, call[0](*call[1:])) for call in calls])
         else:
-            self.pending = (g, [self.pool.submit(fn, *args) for fn, *args in calls])
+            self.pending = (g, [(call, self.pool.submit(*call)) for call in calls])
 
     def collect(self) -> tuple[int, dict[str, Any]] | None:
-        """The pending generation and its figures (waiting for them), or None."""
+        """The pending generation and its figures (waiting for them), or None. A monitor
+        whose actor died is played here instead: the same episodes, the same figures."""
         if self.pending is None:
             return None
         import ray
+        from ray.exceptions import RayActorError
 
         g, parts = self.pending
         self.pending = None
         figures: dict[str, Any] = {"monitored": 1}
-        for part in ray.get(parts) if self.pool is not None else parts:
+        for call, part in parts:
+            if isinstance(part, ray.ObjectRef):
+                try:
+                    part = ray.get(part)
+                except RayActorError:
+                    part = call[0](*call[1:])
             own = part.pop("own", {})
             self.known |= {int(v): f for v, f in own.items()}
             figures |= part

@@ -138,3 +138,35 @@ def test_a_batched_chunk_plays_the_episodes_each_hyperedge_plays_alone():
         same += int(np.isclose(result.team_return, alone.team_return.mean(), rtol=1e-3))
         total += 1
     assert same >= 0.8 * total, f"{same} of {total} hyperedges kept their weight"
+
+
+def test_a_monitor_whose_actor_died_is_played_here_to_the_same_figures(pool):
+    """The population judged as a team (a monitor), submitted to evaluation actors that are
+    dead: the driver plays it instead, to the figures it gives when played here."""
+    from hola_ray.methods.config import RunConfig
+    from hola_ray.methods.monitors import Monitoring
+
+    config = RunConfig.from_dict(
+        {
+            "method": "hola",
+            "env": {"horizon": 150},
+            "grapher": {"episodes_per_edge": EPISODES},
+            "validation": {"pool": "none"},
+        }
+    )
+    here = Monitoring(config, None)
+    here.submit(1, None, EXPORTS)
+    expected = here.collect()
+    assert expected[0] == 1 and "population_team_success" in expected[1]
+    actors = pool.actors()
+    for actor in actors.values():
+        ray.kill(actor, no_restart=True)
+    there = Monitoring(config, pool)
+    there.submit(1, None, EXPORTS)
+
+    def figures(done):  # wall times aside
+        return done[0], {k: v for k, v in done[1].items() if not k.endswith("_s")}
+
+    assert figures(there.collect()) == figures(expected)
+    for k, actor in actors.items():  # the next test's pool is whole again
+        pool.replace(k, actor)
