@@ -33,8 +33,8 @@ def digest(folder: Path) -> str:
     return h.hexdigest()
 
 
-def killed_experiment(background, folder: Path) -> dict:
-    """The commands of the test below, run in the background (`Background`): the smoke
+def killed_experiment(commands, folder: Path) -> dict:
+    """The commands of the test below: the smoke
     experiment one trial at a time, killed by SIGKILL once its first trial is done, then
     resumed."""
     config = yaml.safe_load(SMOKE.read_text())
@@ -47,7 +47,7 @@ def killed_experiment(background, folder: Path) -> dict:
     out = folder / "exp"
     seen: dict = {"out": out}
     cmd = [sys.executable, "-m", "hola_ray.experiment", "--config", str(path), "--out", str(out)]
-    driver = background.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    driver = commands.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     first = out / "trials" / "hola-s0"
     # the runner says "hola-s0: done in …" once the trial's task returned: wait for that line
     seen["first done said"] = any(line.startswith("hola-s0: done in") for line in driver.stdout)
@@ -56,21 +56,21 @@ def killed_experiment(background, folder: Path) -> dict:
     driver.wait()
     seen["kept"] = digest(first)
     cmd = [sys.executable, "-m", "hola_ray.experiment", "--resume", str(out)]
-    done = background.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    done = commands.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     stdout, stderr = done.communicate(timeout=600)
     seen["resumed"] = subprocess.CompletedProcess(cmd, done.returncode, stdout, stderr)
     return seen
 
 
-@pytest.mark.background.with_args(killed_experiment)
+@pytest.mark.e2e
+@pytest.mark.timeout(600)
 def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(
-    background, smoke_run
+    commands, tmp_path, smoke_run
 ):
     """The smoke experiment killed by SIGKILL once its first trial is done: --resume does
     not rerun that trial, which matches `python -m hola_ray.run` of its config, and
-    results.json holds every method × seed × pool. (Its commands ran in the background:
-    `killed_experiment`.)"""
-    seen = background(killed_experiment)
+    results.json holds every method × seed × pool. (Its commands: `killed_experiment`.)"""
+    seen = killed_experiment(commands, tmp_path)
     out = seen["out"]
     first = out / "trials" / "hola-s0"
     assert seen["first done said"], "the experiment ended before its first trial was done"

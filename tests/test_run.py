@@ -201,8 +201,8 @@ def _digest(run_dir: RunDir, g: int) -> str:
     return h.hexdigest()
 
 
-def interrupted_run(background, folder: Path) -> dict:
-    """The commands of the test below, run in the background (`Background`): a run killed
+def interrupted_run(commands, folder: Path) -> dict:
+    """The commands of the test below: a run killed
     by SIGKILL once it said generation 1 was saved, resumed and interrupted by Ctrl-C
     while it trains generation 2, resumed to its end, then resumed once more. What each
     said and left on disk on the way."""
@@ -218,7 +218,7 @@ def interrupted_run(background, folder: Path) -> dict:
     def start(*args: str) -> subprocess.Popen:
         cmd = [sys.executable, "-m", "hola_ray.run", *args, "--no-dashboard", "--quiet"]
         pipes = {"stdout": subprocess.PIPE, "stderr": subprocess.PIPE, "text": True}
-        return background.popen(cmd, **pipes)
+        return commands.popen(cmd, **pipes)
 
     def wait_for(driver: subprocess.Popen, start: str) -> bool:
         """Read the driver's lines until one starts with `start` (True), or its end: an
@@ -250,13 +250,14 @@ def interrupted_run(background, folder: Path) -> dict:
     return seen
 
 
-@pytest.mark.background.with_args(interrupted_run)
-def test_sigkill_then_ctrl_c_then_resume_loses_nothing(background):
+@pytest.mark.e2e
+@pytest.mark.timeout(600)
+def test_sigkill_then_ctrl_c_then_resume_loses_nothing(commands, tmp_path):
     """SIGKILL after generation 1 (nothing gets to clean up), a resume interrupted by
     Ctrl-C while it trains generation 2 (one line, exit 130), a last resume: every
     completed generation kept untouched, the run finished; then it says so, and
-    --generations N extends it. (Its commands ran in the background: `interrupted_run`.)"""
-    seen = background(interrupted_run)
+    --generations N extends it. (Its commands: `interrupted_run`.)"""
+    seen = interrupted_run(commands, tmp_path)
     out = seen["out"]
     r = RunDir(out)
     said = "".join(seen.get("said", []))[-2000:]
@@ -337,14 +338,14 @@ def test_a_fresh_run_refuses_a_used_run_directory(tmp_path, capsys):
     assert not ray.is_initialized()
 
 
-def blocked_write(background, folder: Path) -> tuple[Path, subprocess.CompletedProcess]:
-    """The command of the test below, run in the background (`Background`): the smoke run,
+def blocked_write(commands, folder: Path, smoke: Path) -> tuple[Path, subprocess.CompletedProcess]:
+    """The command of the test below: the smoke run,
     copied, with metrics.csv blocked by a folder of that name, resumed for a second
     generation."""
     import shutil
 
     out = folder / "blocked"
-    shutil.copytree(background("smoke")[0], out, ignore=shutil.ignore_patterns(".lock"))
+    shutil.copytree(smoke, out, ignore=shutil.ignore_patterns(".lock"))
     config = yaml.safe_load((out / "config.yaml").read_text())
     config["grapher"]["workers"] = 0  # no member actors to start: not what this is about
     (out / "config.yaml").write_text(yaml.safe_dump(config))
@@ -353,20 +354,21 @@ def blocked_write(background, folder: Path) -> tuple[Path, subprocess.CompletedP
     (out / "metrics.csv" / "keep").write_text("")
     cmd = [sys.executable, "-m", "hola_ray.run", "--resume", str(out), "--generations", "2"]
     cmd += ["--no-dashboard", "--quiet"]
-    done = background.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    done = commands.popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     stdout, stderr = done.communicate(timeout=300)
     return out, subprocess.CompletedProcess(cmd, done.returncode, stdout, stderr)
 
 
-@pytest.mark.background.with_args(blocked_write)
+@pytest.mark.e2e
+@pytest.mark.timeout(300)
 def test_a_write_that_fails_during_a_generation_is_one_line_and_generations_stay_whole(
-    smoke_run, background
+    smoke_run, commands, tmp_path
 ):
     """metrics.csv blocked by a folder of that name (a write no permission can bypass):
     resuming for a second generation ends with one line naming the file and exit code 1,
     and every generation on disk is whole and loads (what --resume starts from). (Its
-    command ran in the background: `blocked_write`, on a copy of `smoke_run`.)"""
-    out, done = background(blocked_write)
+    command: `blocked_write`, on a copy of `smoke_run`.)"""
+    out, done = blocked_write(commands, tmp_path, smoke_run[0])
     err = done.stderr.strip().splitlines()
     assert done.returncode == 1, done.stderr[-2000:]
     assert err[-1].startswith(f"error: writing {out / 'metrics.csv'} failed (Is a directory)")
