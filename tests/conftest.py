@@ -160,10 +160,53 @@ def smoke_run(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
     return Path(said["out"]), finished
 
 
+_WARM = """
+import sys
+import numba
+import numpy as np
+from hola_ray.env import _kernels
+from hola_ray.env.config import PursuitConfig
+from hola_ray.env.core import BatchedPursuit
+from hola_ray.policies.registry import make_policy
+c = PursuitConfig()
+env = BatchedPursuit(c, 4)
+mask = np.ones(4, dtype=bool)
+if sys.argv[1] == "step":
+    args = (np.zeros((4, c.n_pursuers)), env._kinematic, env._params, env._arena, env._out)
+    _kernels.step_all.compile(tuple(numba.typeof(a) for a in args))
+else:
+    for kernel in (_kernels.reset_masked, _kernels.observe_all):
+        args = (mask, env._params, env._arena, env.obs)
+        kernel.compile(tuple(numba.typeof(a) for a in args))
+    for name in ("greedy", "vicsek", "apf-a-0"):
+        policy = make_policy(name, c)
+        policy.reset()
+        policy.act(np.zeros((4, env.layout.dim), dtype=np.float32))
+"""
+"""The simulator's numba kernels and the hand-written policies', compiled into numba's cache
+by two processes at once (the step: 27 s on a fresh clone; the reset, the observation and
+the policies: 15 s), while the workers start: otherwise each worker and each Ray worker
+compiles them all itself (34 s each)."""
+
+_WARMING: list[subprocess.Popen] = []
+
+
 def pytest_configure(config) -> None:
     config.addinivalue_line(
         "markers", "e2e: drives the commands end to end in subprocesses (own timeout each)"
     )
+    controller = not hasattr(config, "workerinput")
+    if controller and getattr(config.option, "numprocesses", None):
+        for part in ("step", "reset"):  # while the workers start and collect
+            _WARMING.append(subprocess.Popen([sys.executable, "-c", _WARM, part], cwd=ROOT))
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_node_collection_finished(node, ids) -> None:
+    """No test starts before the kernels are in numba's cache."""
+    while _WARMING:
+        if _WARMING.pop().wait() != 0:
+            raise RuntimeError("compiling the simulator's kernels failed (tests/conftest.py)")
 
 
 class _Straight:
