@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     import ray
 
-    from hola_ray.progress import init_ray
+    from hola_ray.process import init_ray
     from hola_ray.run import read_config
 
     config = read_config(args.config, args.sets)

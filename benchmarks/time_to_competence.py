@@ -282,7 +282,7 @@ def main(argv: list[str] | None = None) -> dict:
     from hola_ray.oracle import LEARNER, Oracle
     from hola_ray.oracle.config import Seating
     from hola_ray.oracle.mapping import member_module
-    from hola_ray.progress import init_ray
+    from hola_ray.process import init_ray
     from hola_ray.run import read_config
 
     sets = [*args.sets, f"seed={args.seed}"]

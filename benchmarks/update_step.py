@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> dict:
     from hola_ray.env.layout import ObsLayout
     from hola_ray.oracle import Oracle
     from hola_ray.oracle.config import Seating
-    from hola_ray.progress import init_ray
+    from hola_ray.process import init_ray
     from hola_ray.run import read_config
 
     config = read_config(args.config, args.sets)

@@ -149,7 +149,7 @@ def _rounded(values: Mapping[str, Any]) -> dict[str, Any]:
 
 def script() -> None:
     """`hola-eval` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
-    from hola_ray.progress import leave
+    from hola_ray.process import leave
 
     leave(main())
 

@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def script() -> None:
     """`hola-export` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
-    from hola_ray.progress import leave
+    from hola_ray.process import leave
 
     leave(main())
 

@@ -196,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def script() -> None:
     """`hola-fly` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
-    from hola_ray.progress import leave
+    from hola_ray.process import leave
 
     leave(main())
 

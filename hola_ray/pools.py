@@ -57,7 +57,7 @@ def train_member(member: Member, progress: bool = True) -> tuple[Path, dict[str,
         import ray
 
         from hola_ray.methods.trainer import Trainer
-        from hola_ray.progress import NAMESPACE, init_local_ray
+        from hola_ray.process import NAMESPACE, init_local_ray
 
         if not ray.is_initialized():
             init_local_ray(namespace=NAMESPACE)
@@ -183,9 +183,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def script() -> None:
     """`hola-pools` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
-    hola_ray.pools` runs it (`hola_ray.progress.fixed_hash_seed`)."""
+    hola_ray.pools` runs it (`hola_ray.process.fixed_hash_seed`)."""
 
-    from hola_ray.progress import fixed_hash_seed, leave
+    from hola_ray.process import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.pools", sys.argv[1:])
     leave(main())

@@ -71,7 +71,7 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
     from hola_ray.methods.config import RunConfig
     from hola_ray.methods.trainer import Trainer
     from hola_ray.population.rundir import RunDir
-    from hola_ray.progress import NAMESPACE, init_local_ray
+    from hola_ray.process import NAMESPACE, init_local_ray
 
     path = CONFIGS / f"{name}.yaml"
     if not path.is_file():
@@ -174,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def script() -> None:
     """`hola-populations` (`[project.scripts]`): `main` under the fixed hash seed."""
-    from hola_ray.progress import fixed_hash_seed, leave
+    from hola_ray.process import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.populations", sys.argv[1:])
     leave(main())

@@ -109,7 +109,7 @@ def _team(args) -> tuple[PursuitConfig, list[Policy]]:
 
 def script() -> None:
     """`hola-replay` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
-    from hola_ray.progress import leave
+    from hola_ray.process import leave
 
     leave(main())
 

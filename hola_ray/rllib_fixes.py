@@ -18,8 +18,11 @@ that `torch.compile`'s inductor reads. The fix sets the same eager-mode flag
 (`torch._C._set_deterministic_algorithms`) and the inductor's flag only when the inductor
 is loaded already; what the eager ops compute is the same (tested in the same file).
 
-Applied by `hola_ray.oracle` (the Oracle, its env runners) and the D3QN trainer, once per
-process; RLlib other than the version it was written for is left alone.
+Applied by an explicit call, `apply()`, where RLlib's parts are built: the Oracle
+(`hola_ray.oracle.trainer.Oracle`), each of its env runners (`BatchedEnvRunner`) and the
+D3QN trainer; once per process (a second call finds them in place). RLlib other than the
+version they were written for is left alone. The report for Ray's maintainers is in
+docs/packages.md ("Two fixes of RLlib 2.60").
 """
 
 from __future__ import annotations
@@ -105,3 +108,20 @@ def light_seeding() -> bool:
     set_torch_seed._rllib = rllib_set_torch_seed
     deterministic.set_torch_seed = set_torch_seed
     return True
+
+
+def apply() -> dict[str, bool]:
+    """Both fixes in this process; which are in place (False: another RLlib version)."""
+    return {"fast_connectors": fast_connectors(), "light_seeding": light_seeding()}
+
+
+def in_place() -> dict[str, bool]:
+    """Which fixes this process has, and whether it loaded torch's inductor."""
+    from ray.rllib.connectors.connector_v2 import ConnectorV2
+    from ray.rllib.utils.debug import deterministic
+
+    return {
+        "fast_connectors": getattr(ConnectorV2.__init__, "_fast", False),
+        "light_seeding": getattr(deterministic.set_torch_seed, "_light", False),
+        "inductor_loaded": "torch._inductor.config" in sys.modules,
+    }

@@ -163,8 +163,8 @@ def finished(out: Path, config: RunConfig) -> bool:
 
 def init_ray(args: argparse.Namespace) -> None:
     """Join RAY_ADDRESS's cluster if set, else start a local Ray."""
-    from hola_ray.progress import NAMESPACE
-    from hola_ray.progress import init_ray as start
+    from hola_ray.process import NAMESPACE
+    from hola_ray.process import init_ray as start
 
     url = start(NAMESPACE, args.num_cpus, dashboard=not args.no_dashboard)
     if url:
@@ -259,8 +259,8 @@ def interrupted(out: Path) -> int:
 
 def script() -> None:
     """`hola-run` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
-    hola_ray.run` runs it (`hola_ray.progress.fixed_hash_seed`)."""
-    from hola_ray.progress import fixed_hash_seed, leave
+    hola_ray.run` runs it (`hola_ray.process.fixed_hash_seed`)."""
+    from hola_ray.process import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.run", sys.argv[1:])
     from hola_ray.clock import process_start

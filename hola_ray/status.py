@@ -73,7 +73,7 @@ def live_view(run_dir: Path) -> dict[str, Any] | None:
     import ray
 
     from hola_ray.population.coordinator import coordinator_name
-    from hola_ray.progress import NAMESPACE
+    from hola_ray.process import NAMESPACE
 
     ray.init(
         address=os.environ.get("RAY_ADDRESS", "auto"), namespace=NAMESPACE, log_to_driver=False
@@ -307,7 +307,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def script() -> None:
     """`hola-status` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
-    from hola_ray.progress import leave
+    from hola_ray.process import leave
 
     leave(main())
 

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from hola_ray.env import PursuitConfig
 
 # The commands re-run themselves under PYTHONHASHSEED=0 when it is not set
-# (`hola_ray.progress.fixed_hash_seed`): the tests' subprocesses start with it set, as
+# (`hola_ray.process.fixed_hash_seed`): the tests' subprocesses start with it set, as
 # the re-run would, and skip a second interpreter's imports (seconds each).
 os.environ.setdefault("PYTHONHASHSEED", "0")
 # The suite's two workers (pytest-xdist) share the 2 cores, and numba's parallel kernels
@@ -52,7 +52,7 @@ def ray_session():
     """One local Ray per test module (start-up and per-actor torch imports cost seconds)."""
     import ray
 
-    from hola_ray.progress import worker_runtime_env
+    from hola_ray.process import worker_runtime_env
 
     ray.init(
         address="local",
@@ -244,7 +244,7 @@ def local_learner():
 def pytest_unconfigure(config) -> None:
     """Freeze every live object before the interpreter ends: its last collection would walk
     all that torch, RLlib and Ray made (seconds), as at a command's end
-    (`hola_ray.progress.leave`)."""
+    (`hola_ray.process.leave`)."""
     import gc
 
     gc.freeze()

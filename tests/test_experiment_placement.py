@@ -21,7 +21,7 @@ from ray.cluster_utils import Cluster
 
 from hola_ray.experiment import Experiment, Runner
 from hola_ray.population.rundir import RunDir
-from hola_ray.progress import worker_runtime_env
+from hola_ray.process import worker_runtime_env
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -40,7 +40,7 @@ def test_a_command_reruns_itself_under_the_fixed_hash_seed(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "PYTHONHASHSEED"}
     env["PYTHONPATH"] = os.pathsep.join([str(tmp_path), env.get("PYTHONPATH", "")])
     code = (
-        "import sys; from hola_ray.progress import fixed_hash_seed; "
+        "import sys; from hola_ray.process import fixed_hash_seed; "
         "fixed_hash_seed('probe', sys.argv[1:])"
     )
 
@@ -71,7 +71,7 @@ def test_a_command_leaves_with_its_code_and_every_object_frozen():
 
     import pytest
 
-    from hola_ray.progress import leave
+    from hola_ray.process import leave
 
     assert gc.get_freeze_count() == 0
     try:

@@ -283,10 +283,9 @@ def algorithm_config(run: D3QNRun):
 def build(run: D3QNRun):
     """RLlib's DQN for `run`, every random draw seeded from the run's seed: RLlib seeds its
     env runners and learner, but its replay buffer draws from an unseeded generator."""
-    from hola_ray.rllib_fixes import fast_connectors, light_seeding
+    from hola_ray import rllib_fixes
 
-    fast_connectors()
-    light_seeding()
+    rllib_fixes.apply()
     algo = algorithm_config(run).build_algo()
     algo.local_replay_buffer.rng = np.random.default_rng(run.seed)
     return algo
@@ -372,7 +371,7 @@ def train_d3qn(
     """Train (or reuse a finished) D3QN-G run; its export file and what the training did."""
     import ray
 
-    from hola_ray.progress import init_local_ray
+    from hola_ray.process import init_local_ray
 
     out = Path(out)
     done = out / "done.json"
@@ -464,10 +463,10 @@ def main(argv: list[str] | None = None) -> None:
 
 def script() -> None:
     """`hola-d3qn` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
-    hola_ray.evaluation.d3qn_train` runs it (`hola_ray.progress.fixed_hash_seed`)."""
+    hola_ray.evaluation.d3qn_train` runs it (`hola_ray.process.fixed_hash_seed`)."""
     import sys
 
-    from hola_ray.progress import fixed_hash_seed, leave
+    from hola_ray.process import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.evaluation.d3qn_train", sys.argv[1:])
     main()

@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
             },
         }
         (out / CONFIG_NAME).write_text(yaml.safe_dump(saved, sort_keys=False))
-    from hola_ray.progress import NAMESPACE, init_ray
+    from hola_ray.process import NAMESPACE, init_ray
 
     init_ray(NAMESPACE, args.num_cpus)
     trials = experiment.trials()
@@ -87,8 +87,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def script() -> None:
     """`hola-experiment` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
-    hola_ray.experiment` runs it (`hola_ray.progress.fixed_hash_seed`)."""
-    from hola_ray.progress import fixed_hash_seed, leave
+    hola_ray.experiment` runs it (`hola_ray.process.fixed_hash_seed`)."""
+    from hola_ray.process import fixed_hash_seed, leave
 
     fixed_hash_seed("hola_ray.experiment", sys.argv[1:])
     leave(main())

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from hola_ray.methods.config import RunConfig
-from hola_ray.progress import pin_threads
+from hola_ray.process import pin_threads
 
 
 def trial_state(run_dir: Path, generations: int) -> tuple[str, int | None]:
@@ -62,7 +62,7 @@ def _run_trial(
 
     from hola_ray.experiment.mirror import DirectorySync, Mirror, unpack
     from hola_ray.methods.trainer import Trainer
-    from hola_ray.progress import quiet_ray_noise
+    from hola_ray.process import quiet_ray_noise
 
     quiet_ray_noise()  # before its trainer builds RLlib's algorithm
     # Not `pin_threads`: the learner's torch threads set how its gradients are summed, and

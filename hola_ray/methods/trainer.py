@@ -40,7 +40,7 @@ from hola_ray.population.grapher import evaluate_edges, evaluate_edges_here
 from hola_ray.population.lock import RunLock
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import EdgeResult, edge_seed
-from hola_ray.progress import NAMESPACE
+from hola_ray.process import NAMESPACE
 
 _REPORTED = tuple((m.name, m.field) for m in TEAM)
 """(metric name in metrics.csv, its field in an edge result or a rollout summary)"""

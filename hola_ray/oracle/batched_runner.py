@@ -53,11 +53,12 @@ from ray.rllib.utils.metrics import (
     WEIGHTS_SEQ_NO,
 )
 
+from hola_ray import rllib_fixes
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitPPOModule
 from hola_ray.policies.learned import MLPPolicy, MLPStack, export_from_rllib
-from hola_ray.progress import pin_threads, quiet_ray_noise, seed_torch
+from hola_ray.process import pin_threads, quiet_ray_noise, seed_torch
 
 SKIP = MultiAgentEpisode.SKIP_ENV_TS_TAG
 
@@ -83,6 +84,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
 
     def __init__(self, config, **kwargs) -> None:
         quiet_ray_noise()  # before RLlib builds the modules (its deprecation warnings)
+        rllib_fixes.apply()  # before it builds its connectors and seeds torch
         super().__init__(config=config, **kwargs)
         if self.worker_index > 0:
             pin_threads(self.config.num_cpus_per_env_runner)

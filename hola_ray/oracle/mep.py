@@ -482,7 +482,7 @@ class OracleLearner(PPOTorchLearner):
 
     def reseed(self, words: Sequence[int]) -> None:
         """This process's global generators (the minibatches' shuffles) from `words`."""
-        from hola_ray.progress import seed_torch
+        from hola_ray.process import seed_torch
 
         np.random.seed(np.random.SeedSequence(list(words)).generate_state(4))  # noqa: NPY002
         seed_torch(words)
@@ -508,9 +508,11 @@ class OracleLearner(PPOTorchLearner):
         )
 
     def build(self) -> None:
-        from hola_ray.progress import pin_threads, quiet_ray_noise
+        from hola_ray import rllib_fixes
+        from hola_ray.process import pin_threads, quiet_ray_noise
 
         quiet_ray_noise()  # a remote learner's process: before RLlib builds its modules
+        rllib_fixes.apply()  # and its connectors (a no-op where the Oracle applied them)
         super().build()
         extra = self.config.learner_config_dict
         self._lean = extra.get("update", "lean") == "lean"

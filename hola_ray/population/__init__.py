@@ -7,7 +7,7 @@ from hola_ray.population.evaluators import Evaluator, EvaluatorPool, evaluate_te
 from hola_ray.population.grapher import evaluate_edges
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import Decision, EdgeResult, Population, edge_seed
-from hola_ray.progress import NAMESPACE
+from hola_ray.process import NAMESPACE
 
 __all__ = [
     "NAMESPACE",

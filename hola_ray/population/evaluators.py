@@ -19,7 +19,7 @@ import numpy as np
 import ray
 
 from hola_ray.population.state import EdgeResult
-from hola_ray.progress import pin_threads
+from hola_ray.process import pin_threads
 
 
 def evaluate_team(

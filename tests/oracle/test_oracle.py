@@ -50,6 +50,22 @@ def oracle(ray_session):
     o.stop()
 
 
+def test_building_an_oracle_applies_the_rllib_fixes_in_its_processes(oracle):
+    """`rllib_fixes.apply()` is called where the Oracle builds RLlib's parts, not by an
+    import: in the driver and in every env runner (each its own process) both fixes are in
+    place, and no env runner loaded the inductor. (The driver's learner has: torch's Adam
+    imports `torch._dynamo`, and with it the inductor's config, at its first call.)"""
+    from hola_ray import rllib_fixes
+
+    here = rllib_fixes.in_place()
+    assert here["fast_connectors"] and here["light_seeding"], here
+    runners = oracle.algo.env_runner_group.foreach_env_runner(
+        lambda runner: rllib_fixes.in_place(), local_env_runner=False
+    )
+    fixed = {"fast_connectors": True, "light_seeding": True, "inductor_loaded": False}
+    assert runners and all(r == fixed for r in runners), runners
+
+
 def random_state(oracle, seed):
     rng = np.random.default_rng(seed)
     base = oracle.weights([LEARNER])[LEARNER]
