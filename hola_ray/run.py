@@ -87,10 +87,28 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
+class RunError(RuntimeError):
+    """A run cannot start or continue as asked (e.g. a run directory already in use)."""
+
+
+def check_run_dir(run_dir: Path, resume: bool) -> None:
+    """Refuse to start a fresh run over a run directory that has generations."""
+    from hola_ray.population.rundir import RunDir
+
+    run = RunDir(run_dir)
+    if resume:
+        if not run.config.is_file():
+            raise RunError(f"--resume {run_dir}: no config.yaml there, not a run directory")
+    elif run.completed():
+        raise RunError(
+            f"{run_dir} already holds generations {run.completed()}; "
+            f"continue it with --resume {run_dir} or pick another --out"
+        )
+
+
 def resolve(args: argparse.Namespace) -> tuple[RunConfig, Path]:
     """The validated config and run directory; raises before any work starts."""
     from hola_ray.methods.config import RunConfig
-    from hola_ray.methods.trainer import check_run_dir
 
     if args.resume is not None:
         if args.config is not None or args.out is not None or args.set:
@@ -182,6 +200,14 @@ def main(argv: list[str] | None = None, started: float | None = None) -> int:
         return 2
     if args.resume is not None and finished(out, config):
         return 0
+    from hola_ray.methods.generation_zero import resolve as resolve_zero
+    from hola_ray.population.rundir import RunDir
+
+    try:  # where generation 0 comes from, before Ray starts: a refused population is one line
+        zero = resolve_zero(config, RunDir(out))
+    except RuntimeError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     from hola_ray.population.lock import RunDirLocked, RunLock
 
     lock = RunLock(out)
@@ -202,7 +228,7 @@ def main(argv: list[str] | None = None, started: float | None = None) -> int:
             f"generations, {config.oracle.env_steps:,} env steps per oracle",
             flush=True,
         )
-        Trainer(config, out, progress=not args.quiet, lock=lock, started=started).fit()
+        Trainer(config, out, not args.quiet, lock, started=started, zero=zero).fit()
     except KeyboardInterrupt:
         return interrupted(out)
     except OSError as err:  # a failed write, here or in the coordinator (a Ray task's error)

@@ -25,6 +25,7 @@ from hola_ray.population.state import Decision, Population
 
 if TYPE_CHECKING:
     from hola_ray.methods.config import RunConfig
+    from hola_ray.methods.generation_zero import GenerationZero
     from hola_ray.methods.trainer import Trainer
     from hola_ray.oracle.trainer import TrainStats
 
@@ -123,8 +124,8 @@ class Method:
     def generation_zero(self, trainer: Trainer) -> Built:
         """What the trainer calls for generation 0: the members of a shipped population
         built in another scenario (`shipped_members`), else `build_population`."""
-        if trainer.foreign_population is not None:
-            return shipped_members(*trainer.foreign_population)
+        if trainer.zero.source == "reweigh":
+            return shipped_members(trainer.zero)
         return self.build_population(trainer)
 
     def before_training(self, trainer: Trainer, g: int, oracle: Oracle) -> int | None:
@@ -143,11 +144,13 @@ class Method:
         return f"rejected (rank {decision.rank} > top {config.population.top_m})"
 
 
-def shipped_members(donor: Any, manifest: dict[str, Any], said: str, differ: str) -> Built:
-    """The members of a shipped population built in another scenario (`differ`: the fields,
-    as dotted names), taken as a run's generation 0; the run weighs its G_0 itself."""
+def shipped_members(zero: GenerationZero) -> Built:
+    """The members of a shipped population built in another scenario (`zero.differ`: the
+    fields, as dotted names), taken as a run's generation 0; the run weighs its G_0 itself."""
     from hola_ray.oracle.trainer import TrainStats
+    from hola_ray.population.rundir import RunDir
 
+    donor, manifest, said, differ = RunDir(zero.donor), zero.manifest, zero.said, zero.differ
     nodes = sorted(e["node"] for e in manifest["members"].values())
     stats = TrainStats(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
     note = f"{said}; G_0 weighed under this run's scenario ({differ} differ)"

@@ -137,6 +137,28 @@ def team_figures(result) -> dict[str, float]:
     }
 
 
+def monitored(figures: Mapping[str, Any], row: Mapping[str, Any], n_pursuers: int) -> str:
+    """What a generation's log line says of its monitors (`figures`, now in its `row`)."""
+    said = ""
+    if "members_success" in figures:
+        said = (
+            f"members as copies success {row['members_success']:.0%} (the weakest "
+            f"{row['members_success_min']:.0%}), teams of members "
+            f"{row['population_team_success']:.0%}; "
+        )
+    if "learner_success" in figures:  # self-play: the learner as copies
+        said = (
+            f"as {n_pursuers} copies success {row['learner_success']:.0%}, "
+            f"collision {row['learner_collision']:.0%}; "
+        )
+    if "val_success" in figures:
+        said += (
+            f"with the validation teammates success {row['val_success']:.0%}, "
+            f"collision {row['val_collision']:.0%}, own crash {row['val_learner_crash']:.0%}; "
+        )
+    return said
+
+
 class Monitoring:
     """The monitors of the generation last committed: submitted to the run's evaluation
     actors (played here with none) and collected once the next generation has trained."""

@@ -16,38 +16,29 @@ its own judging without them)."""
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import ray
 from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
 from hola_ray import interrupt
 from hola_ray.clock import PhaseClock
-from hola_ray.evaluation.metrics import TEAM
+from hola_ray.methods import generation_zero
 from hola_ray.methods.config import RunConfig
-from hola_ray.methods.monitors import Monitoring, validation_teammates
+from hola_ray.methods.generation_zero import KEY_FILE, GenerationZero
+from hola_ray.methods.monitors import Monitoring, monitored, validation_teammates
 from hola_ray.oracle import LEARNER, Oracle
-from hola_ray.population import shipped
 from hola_ray.population.coordinator import Coordinator, coordinator_name, run_id
 from hola_ray.population.evaluators import EvaluatorPool
-from hola_ray.population.grapher import evaluate_edges, evaluate_edges_here
+from hola_ray.population.grapher import edge_summary, weigh
 from hola_ray.population.lock import RunLock
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import EdgeResult, edge_seed
 from hola_ray.process import NAMESPACE
-
-_REPORTED = tuple((m.name, m.field) for m in TEAM)
-"""(metric name in metrics.csv, its field in an edge result or a rollout summary)"""
-
-
-class RunError(RuntimeError):
-    """A run cannot start or continue as asked (e.g. a run directory already in use)."""
 
 
 @dataclass
@@ -69,6 +60,9 @@ class Trainer:
     started: float | None = None
     """when the command began (`time.perf_counter()`): the first row this process writes
     counts its start from there (`hola_ray.clock`); None: from `fit`"""
+    zero: GenerationZero | None = None
+    """where generation 0 comes from and where the learner starts, resolved before Ray
+    started (`generation_zero.resolve`); None: resolved by `fit`"""
 
     def __post_init__(self) -> None:
         self.run = RunDir(self.run_dir)
@@ -78,10 +72,8 @@ class Trainer:
         self.monitoring = Monitoring(c, self.pool if c.grapher.workers else None)
         self.clock = PhaseClock(self.started)
         """the time of the metrics row in progress, by phase"""
-        self.start_node = -1  # the member the learner started from (learner_start: member)
-        self.foreign_population: tuple | None = None
-        """a shipped population built in another scenario, whose G_0 this run weighs:
-        (its folder, manifest, what to say, the fields that differ)"""
+        self.start_node: int | None = None
+        """the member the learner started from (`pretrain.learner_start: member`)"""
 
     # ---- entry --------------------------------------------------------------------------
     def fit(self) -> list[dict[str, Any]]:
@@ -105,9 +97,12 @@ class Trainer:
         clock = self.clock
         if self.started is not None:  # the command's imports and Ray's start
             clock.add("process", time.perf_counter() - clock.since)
+        if self.zero is None:
+            self.zero = generation_zero.resolve(c, self.run, self.adopt_from)
+        zero = self.zero
         self.run.create(c.to_yaml())
         with clock.phase("population"):
-            self._adopt()
+            generation_zero.take(zero, self.run, self._say)
         here = ray.get_runtime_context().get_node_id()
         self.coord = Coordinator.options(
             name=coordinator_name(str(self.run_dir)),
@@ -133,7 +128,7 @@ class Trainer:
             # read here, not asked of the coordinator: its actor starts (seconds of imports)
             # while this driver pre-trains or builds its Oracle
             last = self.run.last_completed()
-            if last is None and self.foreign_population is not None and c.generations:
+            if last is None and zero.source == "reweigh" and c.generations:
                 # generation 0 trains nothing (a shipped population weighed again): the
                 # Oracle is built while the coordinator and evaluation actors start
                 with clock.phase("oracle_build"):
@@ -158,8 +153,10 @@ class Trainer:
                         oracle = make_oracle(c)
                 with clock.phase("seat"):
                     learner = self.run.load_learner_state(last)
-                    if learner is None and last == 0 and self._starts_from_member():
-                        learner = self._starting_member()
+                    if learner is None and last == 0:
+                        start = generation_zero.starting_member(zero, c, self.coord, self._say)
+                        if start is not None:
+                            self.start_node, learner = start
                     if learner is not None:
                         oracle.set_trained_weights({LEARNER: learner})
                     training = self.run.load_training_state(last) if last >= 1 else None
@@ -183,99 +180,12 @@ class Trainer:
         return [self.run.metrics(g) for g in written]
 
     # ---- generation 0 -------------------------------------------------------------------
-    def _adopt(self) -> None:
-        """A fresh run whose generation 0 another run already built (`adopt_from`, the same
-        `generation_zero_key`) takes it instead of pre-training again."""
-        c = self.config
-        if self.run.last_completed() is not None:
-            return
-        if c.pretrain.shipped and c.strategy.population_kind is not None:
-            self._adopt_shipped()
-            return
-        key = c.generation_zero_key()
-        if key is None:
-            return
-        for folder in self.adopt_from:
-            donor = RunDir(folder)
-            marker = donor.generation(0) / KEY_FILE
-            if Path(folder).resolve() == self.run.root.resolve() or not marker.is_file():
-                continue
-            if marker.read_text() != key:
-                continue
-            self.run.adopt_generation_zero(donor)
-            self._say(f"gen 0: adopted from {donor.root.name} (the same pre-training and G_0)")
-            return
-
-    def _adopt_shipped(self) -> None:
-        """Generation 0 is a shipped population (`pretrain.population`), verified, fitting
-        the run's layout and apart from every pool (`hola_ray.population.shipped`). Built in
-        this run's scenario (reward included), its generation 0 is copied in whole; built
-        in another (say SPEC's approach term, where the run has own_move), its members are
-        taken and G_0 is weighed again under the run's own (`_pretrain`): a hyperedge's
-        weight is a team return, and η compares the learner's hyperedges with G_0's."""
-        c = self.config
-        kind, size = c.strategy.population_kind, c.strategy.population_size(c)
-        kinds = (kind, *c.strategy.also_seats)
-        donor, manifest = shipped.load(c.pretrain.population, c.seed, c.layout(), kinds)
-        if len(manifest["members"]) != size:
-            raise shipped.PopulationError(
-                f"population {donor.root.name} holds {len(manifest['members'])} members; "
-                f"method {c.method} with this config builds {size}"
-            )
-        built_in = RunConfig.from_dict(manifest["config_values"]).env
-        said = (
-            f"the shipped population {donor.root.name} ({size} members, built at commit "
-            f"{str(manifest.get('commit'))[:8]}, seed {manifest.get('seed')})"
-        )
-        if built_in != c.env:
-            self.foreign_population = (donor, manifest, said, _differences(built_in, c.env))
-            return
-        self.run.adopt_generation_zero(donor)
-        self._say(f"gen 0: {said}")
-
-    def _starts_from_member(self) -> bool:
-        c = self.config
-        has_members = c.strategy.population_kind is not None or c.pretrain.shipped
-        own = c.strategy.sets_learner  # PBT: each generation starts from one of its agents
-        return c.pretrain.learner_start == "member" and has_members and not own
-
-    def _starting_member(self) -> dict[str, Any]:
-        """`pretrain.learner_start: member`: the RLlib state of generation 0's member with
-        the highest η (the lowest node on a tie), which the learner starts from; for a
-        method without a population (self-play), the shipped population's (`_shipped_start`)."""
-        if self.config.strategy.population_kind is None:
-            return self._shipped_start()
-        members = ray.get(self.coord.view.remote())["members"]
-        node = shipped.most_preferred({m["node"]: m["eta"] for m in members})
-        best = next(m for m in members if m["node"] == node)
-        self._say(
-            f"gen 1: the learner starts from member {best['node']} (η {best['eta'] or 0:.3f}, "
-            f"the highest of {len(members)})"
-        )
-        self.start_node = best["node"]
-        return ray.get(self.coord.member_states.remote([best["node"]]))[best["node"]]
-
-    def _shipped_start(self) -> dict[str, Any]:
-        """Self-play's learner from the most preferred member of the shipped population
-        `pretrain.population` names (say FCP's, whose members are self-play checkpoints):
-        the strategy a population method's learner starts from, without the population."""
-        c = self.config
-        donor, manifest, node, eta = shipped.preferred_member(
-            c.pretrain.population, c.seed, c.layout()
-        )
-        self._say(
-            f"gen 1: the learner starts from member {node} of the shipped population "
-            f"{donor.root.name} (η {eta:.3f}, the highest of {len(manifest['members'])})"
-        )
-        self.start_node = node
-        return donor.load_member_state(node)
-
     def _pretrain(self) -> dict[str, Any]:
         c, clock = self.config, self.clock
         self.coord.set_phase.remote("pretrain")
         start = time.perf_counter()
         # a shipped population's members (weighed again here), or pre-training
-        with clock.phase("population" if self.foreign_population else "pretrain"):
+        with clock.phase("population" if self.zero.source == "reweigh" else "pretrain"):
             built = c.strategy.generation_zero(self)
             states_list, stats = built.states, built.stats
             exports = [c.export(s) for s in states_list]
@@ -296,7 +206,7 @@ class Trainer:
             "pretrain_env_steps_per_s": round(stats.env_steps_per_s, 1),
             **{f"pretrain_{k}": round(v, 4) for k, v in stats.spread.items()},
             **built.metrics,
-            **_edge_summary("population", results),
+            **edge_summary("population", results),
             **grapher,
             **clock.close(),
         }
@@ -354,7 +264,7 @@ class Trainer:
             "oracle_sample_s": round(stats.sample_s, 2),
             "oracle_learn_s": round(stats.learn_s, 2),
             "oracle_learner_return": stats.module_return.get(LEARNER, float("nan")),
-            **({"learner_start_node": self.start_node} if g == 1 and self.start_node >= 0 else {}),
+            **self._start_node(g),
             **{k: round(v, 4) for k, v in stats.spread.items()},
             **judged,
             **clock.close(),
@@ -367,7 +277,7 @@ class Trainer:
             )
             # learner.json, written last, says the generation is saved (best.pt follows
             # its monitors: `_complete`)
-            self._save_learner(g, export, None if decision is None else decision.to_dict())
+            self.run.save_latest(g, c.method, export, decision and decision.to_dict())
         self._submit_monitors(g, export)
         judged_as = (
             ""
@@ -380,6 +290,10 @@ class Trainer:
             f"gen {g}: {judged_as}std {row.get('std_median', 0):.2f}; "
             f"oracle {oracle_s:.0f}s ({stats.env_steps_per_s:.0f} steps/s)"
         )
+
+    def _start_node(self, g: int) -> dict[str, int]:
+        """Generation 1's row names the member its learner started from, if any."""
+        return {} if g != 1 or self.start_node is None else {"learner_start_node": self.start_node}
 
     def _submit_monitors(self, g: int, export: dict[str, Any] | None) -> None:
         """Start generation g's monitors (`hola_ray.methods.monitors`) of its learner's
@@ -402,40 +316,10 @@ class Trainer:
             ray.get(self.coord.complete.remote(g, figures))
             row = self.run.metrics(g)
             best = g >= 1 and self.run.keep_best(g, row, self.run.load_learner_export(g))
-        judged = ""
-        if "members_success" in figures:
-            judged = (
-                f"members as copies success {row['members_success']:.0%} (the weakest "
-                f"{row['members_success_min']:.0%}), teams of members "
-                f"{row['population_team_success']:.0%}; "
-            )
-        if "learner_success" in figures:  # self-play: the learner as copies
-            judged = (
-                f"as {self.config.env.n_pursuers} copies success {row['learner_success']:.0%}, "
-                f"collision {row['learner_collision']:.0%}; "
-            )
-        if "val_success" in figures:
-            judged += (
-                f"with the validation teammates success {row['val_success']:.0%}, "
-                f"collision {row['val_collision']:.0%}, own crash {row['val_learner_crash']:.0%}; "
-            )
         kept = "best so far" if best else f"best stays generation {self.run.best_generation()}"
-        self._say(f"gen {g} monitored: {judged}{kept if g >= 1 else ''}".rstrip("; "))
+        said = monitored(figures, row, self.config.env.n_pursuers)
+        self._say(f"gen {g} monitored: {said}{kept if g >= 1 else ''}".rstrip("; "))
         return True
-
-    def _save_learner(self, g: int, export: dict[str, Any], decision: dict | None) -> None:
-        """learner.pt and learner.json: generation g's learner, and whether it joined."""
-        accepted = decision is not None and bool(decision["accepted"])
-        self.run.save_learner(export)
-        self.run.save_learner_info(
-            {
-                "generation": g,
-                "method": self.config.method,
-                "in_population": None if decision is None else accepted,
-                "node": decision["candidate"] if accepted else None,
-                "population": "population/members.json" if decision is not None else None,
-            }
-        )
 
     def _catch_up(self, last: int) -> None:
         """A run killed after committing generation `last` but before writing the files
@@ -453,7 +337,7 @@ class Trainer:
         if self.run.learner_generation() != last:
             state = self.run.load_learner_state(last)
             decision = self.run.read_json(last, "state.json")["decision"]
-            self._save_learner(last, self.config.export(state), decision)
+            self.run.save_latest(last, self.config.method, self.config.export(state), decision)
             self._say(f"learner.pt written again from generation {last}")
 
     def _judge_in_population(self, g: int, export, learner_state, slot: int | None = None):
@@ -468,7 +352,7 @@ class Trainer:
             ray.get(self.coord.record.remote(results))
             decision = ray.get(self.coord.decide.remote(slot, g))
         judged = {
-            **_edge_summary("learner", results),
+            **edge_summary("learner", results),
             **grapher,
             "candidate": candidate,
             "accepted": int(decision.accepted),
@@ -485,40 +369,17 @@ class Trainer:
             edges = ray.get(self.coord.edges_to_evaluate.remote(g))
             nodes = sorted({v for e in edges for v in e})
             exports = ray.get(self.coord.exports.remote(nodes))
-
-        def seed_of(edge: tuple[int, ...]) -> int:
-            return edge_seed(c.seed, g, edge)
-
-        if c.grapher.workers == 0:
-            with self.clock.phase("grapher"):
-                results, stats = evaluate_edges_here(
-                    edges,
-                    exports,
-                    c.env.to_dict(),
-                    c.grapher.episodes_per_edge,
-                    seed_of,
-                    parts=c.grapher.chunks,
-                    desc=f"gen {g} grapher",
-                    progress=self.progress,
-                )
-        else:
-            with self.clock.phase("grapher"):
-                results, stats = evaluate_edges(
-                    edges,
-                    self.pool,
-                    ray.put(exports),
-                    c.grapher.episodes_per_edge,
-                    seed_of=seed_of,
-                    parts=c.grapher.chunks,
-                    desc=f"gen {g} grapher",
-                    progress=self.progress,
-                )
-        return results, {
-            "grapher_edges": stats.edges,
-            "grapher_s": round(stats.wall_s, 2),
-            "grapher_episodes_per_s": round(stats.episodes_per_s, 1),
-            "grapher_retries": stats.retries,
-        }
+            return weigh(
+                edges,
+                exports,
+                c.env.to_dict(),
+                self.pool if c.grapher.workers else None,
+                c.grapher.episodes_per_edge,
+                lambda edge: edge_seed(c.seed, g, edge),
+                c.grapher.chunks,
+                desc=f"gen {g} grapher",
+                progress=self.progress,
+            )
 
     def _saved(self, g: int) -> None:
         interrupt.check()
@@ -533,45 +394,3 @@ def make_oracle(config: RunConfig, seed: int | None = None) -> Oracle:
     """The Oracle a run of `config` trains its learner with, seated as its method says."""
     seating = config.strategy.seating(config)
     return Oracle(config.env, config.oracle, seating, config.seed if seed is None else seed)
-
-
-KEY_FILE = "generation_zero_key.json"
-"""in a generation-0 folder: the `generation_zero_key` it was built with"""
-
-
-def _differences(a: Any, b: Any, prefix: str = "env") -> str:
-    """The fields in which two (nested) config dataclasses differ, as dotted names."""
-    out = []
-    for f in dataclasses.fields(a):
-        x, y = getattr(a, f.name), getattr(b, f.name)
-        if dataclasses.is_dataclass(x) and x != y:
-            out.append(_differences(x, y, f"{prefix}.{f.name}"))
-        elif x != y:
-            out.append(f"{prefix}.{f.name}")
-    return ", ".join(out)
-
-
-def _edge_summary(prefix: str, results: list[EdgeResult]) -> dict[str, float]:
-    """Episode-weighted means over hyperedges, with the standard error across hyperedges."""
-    n = np.array([r.episodes for r in results], dtype=np.float64)
-    out: dict[str, float] = {}
-    for name, key in _REPORTED:
-        x = np.array([getattr(r, key) for r in results], dtype=np.float64)
-        mean = float((x * n).sum() / n.sum())
-        se = float(x.std(ddof=1) / np.sqrt(x.size)) if x.size > 1 else 0.0
-        out[f"{prefix}_{name}"] = round(mean, 4)
-        out[f"{prefix}_{name}_se"] = round(se, 4)
-    return out
-
-
-def check_run_dir(run_dir: Path, resume: bool) -> None:
-    """Refuse to start a fresh run over a run directory that has generations."""
-    run = RunDir(run_dir)
-    if resume:
-        if not run.config.is_file():
-            raise RunError(f"--resume {run_dir}: no config.yaml there, not a run directory")
-    elif run.completed():
-        raise RunError(
-            f"{run_dir} already holds generations {run.completed()}; "
-            f"continue it with --resume {run_dir} or pick another --out"
-        )

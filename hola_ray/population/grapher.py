@@ -129,3 +129,51 @@ def evaluate_edges_here(
             bar.update(len(teams) * episodes)
     wall = time.perf_counter() - start
     return results, GrapherStats(len(edges), len(edges) * episodes, wall, 0)
+
+
+def weigh(
+    edges: Sequence[tuple[int, ...]],
+    exports: Mapping[int, Mapping[str, object]],
+    env_config: Mapping[str, object],
+    pool: EvaluatorPool | None,
+    episodes: int,
+    seed_of: Callable[[tuple[int, ...]], int],
+    parts: int,
+    desc: str = "grapher",
+    progress: bool = True,
+) -> tuple[list[EdgeResult], dict[str, float]]:
+    """A generation's hyperedges weighed on the pool's actors (`evaluate_edges`), or here
+    without a pool (`evaluate_edges_here`): the results in the order of `edges`, and the
+    Grapher's figures for the metrics row."""
+    if pool is None:
+        results, stats = evaluate_edges_here(
+            edges, exports, env_config, episodes, seed_of, parts, desc, progress
+        )
+    else:
+        results, stats = evaluate_edges(
+            edges, pool, ray.put(dict(exports)), episodes, seed_of, parts, desc, progress
+        )
+    return results, {
+        "grapher_edges": stats.edges,
+        "grapher_s": round(stats.wall_s, 2),
+        "grapher_episodes_per_s": round(stats.episodes_per_s, 1),
+        "grapher_retries": stats.retries,
+    }
+
+
+def edge_summary(prefix: str, results: Sequence[EdgeResult]) -> dict[str, float]:
+    """Episode-weighted means over hyperedges of every team figure, with the standard error
+    across hyperedges: `<prefix>_<figure>` and `<prefix>_<figure>_se`."""
+    import numpy as np
+
+    from hola_ray.evaluation.metrics import TEAM
+
+    n = np.array([r.episodes for r in results], dtype=np.float64)
+    out: dict[str, float] = {}
+    for m in TEAM:
+        x = np.array([getattr(r, m.field) for r in results], dtype=np.float64)
+        mean = float((x * n).sum() / n.sum())
+        se = float(x.std(ddof=1) / np.sqrt(x.size)) if x.size > 1 else 0.0
+        out[f"{prefix}_{m.name}"] = round(mean, 4)
+        out[f"{prefix}_{m.name}_se"] = round(se, 4)
+    return out

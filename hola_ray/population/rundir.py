@@ -156,6 +156,23 @@ class RunDir:
         """The latest learner as a plain-torch export (`MLPPolicy.load(config, path)`)."""
         _atomic_torch_save(dict(export), self.learner)
 
+    def save_latest(
+        self, g: int, method: str, export: Mapping[str, Any], decision: Mapping | None
+    ) -> None:
+        """learner.pt and learner.json (written last: it says generation g's files at the
+        top are whole): generation g's learner and whether it joined the population."""
+        accepted = decision is not None and bool(decision["accepted"])
+        self.save_learner(export)
+        self.save_learner_info(
+            {
+                "generation": g,
+                "method": method,
+                "in_population": None if decision is None else accepted,
+                "node": decision["candidate"] if accepted else None,
+                "population": "population/members.json" if decision is not None else None,
+            }
+        )
+
     def best_generation(self) -> int | None:
         """The generation whose learner `best.pt` holds, if any."""
         if not self.best_info.is_file():

@@ -17,8 +17,9 @@ from hola_ray.env.config import ConfigError, PursuitConfig, require
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.methods.base import Method
 from hola_ray.methods.config import RunConfig
+from hola_ray.methods.generation_zero import KEY_FILE
 from hola_ray.methods.registry import register, unregister
-from hola_ray.methods.trainer import KEY_FILE, Trainer
+from hola_ray.methods.trainer import Trainer
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import Decision, Population

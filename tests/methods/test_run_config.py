@@ -32,19 +32,28 @@ def test_yaml_round_trip(name):
     assert RunConfig.from_dict(yaml.safe_load(c.to_yaml())) == c
 
 
-def test_a_method_without_a_population_takes_only_its_start_from_the_shipped_one():
+def test_a_method_without_a_population_takes_only_its_start_from_the_shipped_one(tmp_path):
     """`python -m hola_ray.run --set method=sp` on the embedded default (which adopts a
     shipped population and starts its learner from a member): self-play has no population,
     so the shipped one gives its learner's start only, and with `population: none` it
-    starts from random weights."""
-    from hola_ray.methods.trainer import Trainer
+    starts from random weights; hola takes the population (built in another scenario: its
+    G_0 weighed again) and starts from its member.
+    Generation zero is one value, resolved from the config and the folder alone."""
+    from hola_ray.methods.generation_zero import resolve
+    from hola_ray.population.rundir import RunDir
     from hola_ray.run import DEFAULT
 
     config = RunConfig.from_dict(DEFAULT | {"method": "sp"})
     assert config.pretrain.shipped and config.strategy.population_kind is None
-    assert Trainer(config, Path("unused"))._starts_from_member()
+    zero = resolve(config, RunDir(tmp_path / "sp"))
+    assert (zero.source, zero.learner_start) == ("none", "shipped")
     alone = RunConfig.from_dict(DEFAULT | {"method": "sp", "pretrain": {"population": "none"}})
-    assert not Trainer(alone, Path("unused"))._starts_from_member()
+    zero = resolve(alone, RunDir(tmp_path / "alone"))
+    assert (zero.source, zero.learner_start) == ("none", "random")
+    zero = resolve(RunConfig.from_dict(DEFAULT), RunDir(tmp_path / "hola"))
+    assert (zero.source, zero.learner_start) == ("reweigh", "member") and zero.differ
+    assert zero.donor.name == "mep-3v1-s0" and zero.manifest["kind"] == "mep"
+    assert not (tmp_path / "hola").exists()  # nothing written
 
 
 @pytest.mark.parametrize(
