@@ -10,7 +10,7 @@ learner in every seat), a learner beside frozen partners drawn by φ (hola, hola
 uniform, fcp, mep, pbt: `population.max_size` partner modules), and MEP pre-training
 (every member trained, with the population-entropy bonus). For each, the same config is
 trained with `oracle.update: rllib` (RLlib's learner pipeline, minibatch iterator and PPO
-loss) and `oracle.update: lean` (`hola_ray.oracle.mep.OracleLearner`), interleaved,
+loss) and `oracle.update: lean` (`hola_ray.oracle.learner.OracleLearner`), interleaved,
 `--repeats` times each, `--samples` learner transitions (MEP pre-training: env steps, its
 budget's unit) after a warm-up iteration. `--against KEY=A,B` compares KEY's values A and
 B instead (default `oracle.update=rllib,lean`). It prints one JSON line per measurement

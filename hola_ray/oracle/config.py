@@ -86,7 +86,7 @@ class OracleConfig:
     horizon counts as terminated and nothing bootstraps V(s_T) (the default: truncated,
     hola_ray/env/horizon.py)"""
     update: str = "lean"
-    """how the learner runs a PPO update: lean (hola_ray/oracle/mep.py, OracleLearner: the
+    """how the learner runs a PPO update: lean (hola_ray/oracle/learner.py, OracleLearner: the
     frozen partners' rows dropped before GAE, minibatches cut by index, the loss's unused
     terms and per-minibatch logging left out; the same loss and gradients) or rllib (RLlib's
     own pipeline, iterator and loss: the reference the lean path is tested against)"""

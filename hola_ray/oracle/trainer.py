@@ -35,8 +35,8 @@ from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.evaluation.probe import reference_observations
 from hola_ray.oracle.batched_runner import BatchedEnvRunner
 from hola_ray.oracle.config import OracleConfig, Seating
+from hola_ray.oracle.learner import OracleLearner
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
-from hola_ray.oracle.mep import OracleLearner
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitCatalog, PursuitPPOModule
 from hola_ray.oracle.overlap import OverlappedPPO
 from hola_ray.policies.learned import MLPPolicy

@@ -10,7 +10,7 @@ import torch
 from hola_ray.methods.config import RunConfig
 from hola_ray.methods.trainer import make_oracle
 from hola_ray.oracle import LEARNER, PartnerMapping, member_module
-from hola_ray.oracle.mep import mean_policy_logp
+from hola_ray.oracle.connectors import mean_policy_logp
 from hola_ray.policies.learned import (
     MLPPolicy,
     beta_concentrations,
@@ -409,7 +409,7 @@ def test_the_train_batch_holds_the_learners_rows_only_with_gae_on_them(local_lea
     them); the learner's rows get advantages and value targets as before."""
     from ray.rllib.core.learner.training_data import TrainingData
 
-    from hola_ray.oracle.mep import DropFrozenModules
+    from hola_ray.oracle.connectors import DropFrozenModules
 
     learner = local_learner(oracle.algo)
     pieces = [type(p).__name__ for p in learner._learner_connector.connectors]
@@ -547,7 +547,7 @@ def test_the_lean_pipeline_builds_rllibs_train_batch(local_learner, oracle):
         AddOneTsToEpisodesAndTruncate,
     )
 
-    from hola_ray.oracle.mep import AddOneTsInArrays
+    from hola_ray.oracle.connectors import AddOneTsInArrays
 
     learner = local_learner(oracle.algo)
     lean = learner._learner_connector

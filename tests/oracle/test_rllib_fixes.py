@@ -8,7 +8,7 @@ import ray
 from ray.rllib.connectors.connector_v2 import ConnectorV2
 from ray.rllib.connectors.learner.general_advantage_estimation import GeneralAdvantageEstimation
 
-from hola_ray.oracle.mep import DropFrozenModules, PopulationEntropyBonus
+from hola_ray.oracle.connectors import DropFrozenModules, PopulationEntropyBonus
 from hola_ray.rllib_fixes import RLLIB_VERSION, fast_connectors
 
 
