@@ -38,6 +38,7 @@ from hola_ray.evaluation.pools import EVALUATION_POOLS
 from hola_ray.evaluation.report import plot
 from hola_ray.evaluation.rollout import PolicyError
 from hola_ray.evaluation.zero_shot import evaluate
+from hola_ray.homes import RUNS
 from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
 from hola_ray.policies.learned import manifest_scenario
 from hola_ray.policies.registry import load_export, policy_file
@@ -117,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     except (EvaluationError, PolicyError) as err:
         return fail(str(err))
     if args.plot:
-        out = args.out or Path("runs") / time.strftime("evaluation-%Y%m%d-%H%M%S")
+        out = args.out or RUNS / time.strftime("evaluation-%Y%m%d-%H%M%S")
         png, md = plot(results, out)
         print(f"wrote {png} and {md}")
     if args.json:

@@ -29,7 +29,8 @@ INSTALL = "pip install -e '.[deploy]'"
 def resolve(policy: str, best: bool = False) -> tuple[Any, dict[str, Any]]:
     """(MLPPolicy, source facts) of a run directory, generation folder, export file or pool
     member id."""
-    from hola_ray.evaluation.pools import MEMBERS, POOLS, pool_dir, read_manifest, sha256
+    from hola_ray.evaluation.pools import MEMBERS, POOLS, pool_dir, read_manifest
+    from hola_ray.homes import sha256
     from hola_ray.policies.learned import MLPPolicy, manifest_scenario
     from hola_ray.policies.registry import load_export, policy_file
 

@@ -32,16 +32,15 @@ from hola_ray.evaluation.pools import (
     MEMBERS,
     POOLS,
     POOLS_DIR,
-    ROOT,
     RUNS_DIR,
     Member,
     PoolError,
     load_pool,
     pool_dir,
     read_manifest,
-    sha256,
     verify,
 )
+from hola_ray.homes import ROOT, sha256
 from hola_ray.provenance import commit_id
 
 

@@ -20,8 +20,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from hola_ray import homes
 from hola_ray.cli import OneLineParser, fail
-from hola_ray.evaluation.pools import ROOT
+from hola_ray.homes import ROOT
 from hola_ray.population.shipped import (
     POPULATIONS_DIR,
     PopulationError,
@@ -33,19 +34,10 @@ from hola_ray.population.shipped import (
 )
 from hola_ray.provenance import commit_id
 
-CONFIGS = ROOT / "configs" / "populations"
-RUNS = ROOT / "runs" / "populations"
+CONFIGS = homes.CONFIGS / "populations"
+RUNS = homes.RUNS / "populations"
 FIGURES_SEED = 9_100_000
 """the run seed of the episodes each member is judged on as a team of its own copies"""
-
-
-def roles(method: str, nodes: list[int]) -> dict[int, str]:
-    """Each member's role: FCP's members are its agents' start, middle and end checkpoints,
-    in node order; every other population's are members."""
-    if method != "fcp":
-        return dict.fromkeys(nodes, "member")
-    parts = ("start", "middle", "end")
-    return {v: f"checkpoint-{parts[k % 3]}" for k, v in enumerate(sorted(nodes))}
 
 
 def team_figures(config: Any, export: dict[str, Any], episodes: int) -> dict[str, float]:
@@ -117,7 +109,7 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
                 if k in gen0
             },
         },
-        roles=roles(config.method, nodes),
+        roles=config.strategy.member_roles(nodes),
         figures=figures,
         scenario=f"{config.env.n_pursuers}v{config.env.n_evaders}",
     )

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import functools
 import subprocess
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from hola_ray.homes import ROOT
 
 
 @functools.cache

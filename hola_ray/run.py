@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from hola_ray import interrupt
 from hola_ray.cli import apply_sets, make_dir
 from hola_ray.env.config import ConfigError, load_yaml, located
+from hola_ray.homes import RUNS
 
 if TYPE_CHECKING:
     from hola_ray.methods.config import RunConfig
@@ -124,7 +125,7 @@ def resolve(args: argparse.Namespace) -> tuple[RunConfig, Path]:
     config = read_config(args.config, args.set)
     if args.generations is not None:
         config = with_generations(config, args.generations)
-    out = args.out or Path("runs") / time.strftime(f"{config.method}-%Y%m%d-%H%M%S")
+    out = args.out or RUNS / time.strftime(f"{config.method}-%Y%m%d-%H%M%S")
     check_run_dir(out, resume=False)
     make_dir(out)
     return config, out

@@ -81,7 +81,7 @@ def test_pools_bad_inputs(tmp_path, capsys):
     one_line(capsys, "the file changed after the build")
     # a file that matches its manifest but is no torch export
     (broken / "d3qn-g-1.pt").write_text("not torch")
-    from hola_ray.evaluation.pools import sha256
+    from hola_ray.homes import sha256
 
     manifest["members"]["d3qn-g-1"]["sha256"] = sha256(broken / "d3qn-g-1.pt")
     (broken / "manifest.json").write_text(json.dumps(manifest))

@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import hashlib
-import json
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,14 +30,14 @@ from typing import Any
 
 import numpy as np
 
+from hola_ray import homes
 from hola_ray.env.config import PursuitConfig
+from hola_ray.homes import MANIFEST
 from hola_ray.policies.base import Policy
 from hola_ray.policies.registry import load_policy, make_policy
 
-ROOT = Path(__file__).resolve().parents[2]
-POOLS_DIR = ROOT / "pools"
-RUNS_DIR = ROOT / "runs" / "pools"
-MANIFEST = "manifest.json"
+POOLS_DIR = homes.POOLS
+RUNS_DIR = homes.RUNS / "pools"
 FORMAT = "hola_ray.pool/1"
 
 
@@ -147,14 +145,6 @@ class ScenarioAdapter(Policy):
 
 
 # ---- manifests and hashes -------------------------------------------------------------------
-def sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def pool_dir(pool: str | Path) -> Path:
     """`hot`, `het` or a folder holding a manifest → the pool's folder."""
     if isinstance(pool, str) and pool in POOLS:
@@ -168,37 +158,14 @@ def pool_dir(pool: str | Path) -> Path:
 
 
 def read_manifest(folder: Path) -> dict[str, Any]:
-    path = folder / MANIFEST
-    if not path.is_file():
-        raise PoolError(
-            f"{folder} holds no {MANIFEST}: build it with python -m hola_ray.pools build "
-            f"--pool {folder.name}"
-        )
-    try:
-        manifest = json.loads(path.read_text())
-    except json.JSONDecodeError as err:
-        raise PoolError(f"{path}: not valid JSON ({err}); restore it from git") from err
-    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
-        manifest = manifest if isinstance(manifest, dict) else {}
-        raise PoolError(f"{path}: not a {FORMAT} manifest (format {manifest.get('format')!r})")
-    return manifest
+    missing = f"build it with python -m hola_ray.pools build --pool {folder.name}"
+    return homes.read_manifest(folder, FORMAT, PoolError, missing)
 
 
 def verify(folder: Path, manifest: dict[str, Any]) -> None:
     """Every member file is there and has the manifest's sha256, or one clear error."""
-    for mid, entry in manifest["members"].items():
-        if entry.get("file") is None:
-            continue
-        path = folder / entry["file"]
-        if not path.is_file():
-            raise PoolError(f"pool {folder.name}: member {mid}'s file {path} is missing")
-        got = sha256(path)
-        if got != entry["sha256"]:
-            raise PoolError(
-                f"pool {folder.name}: {path} has sha256 {got[:12]}…, the manifest says "
-                f"{entry['sha256'][:12]}…: the file changed after the build; restore it "
-                f"(git checkout {path}) or rebuild the pool"
-            )
+    expected = {e["file"]: e["sha256"] for e in manifest["members"].values() if e.get("file")}
+    homes.verify_files(folder, expected, f"pool {folder.name}", PoolError)
 
 
 def load_member(folder: Path, mid: str, entry: dict[str, Any], config: PursuitConfig) -> Policy:

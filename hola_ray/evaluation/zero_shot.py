@@ -31,10 +31,11 @@ import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.compare import FIELDS, METRICS, compare
-from hola_ray.evaluation.pools import pool_dir, sha256
+from hola_ray.evaluation.pools import pool_dir
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.evaluation.teams import play
+from hola_ray.homes import sha256
 
 
 # ---- BR-Prox score --------------------------------------------------------------------------

@@ -31,6 +31,7 @@ def main(argv: list[str] | None = None) -> int:
     from hola_ray.env.config import ConfigError
     from hola_ray.experiment.config import CONFIG_NAME, Experiment
     from hola_ray.experiment.runner import Runner
+    from hola_ray.homes import RUNS
 
     try:
         if args.resume is not None:
@@ -44,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
             raise ConfigError("give --config configs/experiments/X.yaml or --resume DIR")
         else:
             experiment = Experiment.from_yaml(args.config)
-            out = args.out or Path("runs") / time.strftime(f"{args.config.stem}-%Y%m%d-%H%M%S")
+            out = args.out or RUNS / time.strftime(f"{args.config.stem}-%Y%m%d-%H%M%S")
             if (out / CONFIG_NAME).is_file():
                 raise ConfigError(f"{out} already holds an experiment; continue it with --resume")
             make_dir(out)

@@ -18,9 +18,9 @@ from hola_ray.env.checks import (
     positive_int,
     require,
 )
+from hola_ray.homes import ROOT
 from hola_ray.methods.config import METHODS, RunConfig
 
-ROOT = Path(__file__).resolve().parents[2]
 CONFIG_NAME = "experiment.yaml"
 
 

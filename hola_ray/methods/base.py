@@ -133,6 +133,10 @@ class Method:
         member the learner was seated from (PBT), else None."""
         return None
 
+    def member_roles(self, nodes: list[int]) -> dict[int, str]:
+        """Each generation-0 member's role in a shipped population's manifest."""
+        return dict.fromkeys(nodes, "member")
+
     def verdict(self, config: RunConfig, decision: Decision) -> str:
         """What the generation's log line says about the coordinator's decision."""
         if decision.accepted:

@@ -38,6 +38,11 @@ class FCP(Method):
     population_kind: ClassVar[str | None] = "fcp"
     section = ("fcp", FCPConfig)
 
+    def member_roles(self, nodes: list[int]) -> dict[int, str]:
+        """Its agents' start, middle and end checkpoints, in node order."""
+        parts = ("start", "middle", "end")
+        return {v: f"checkpoint-{parts[k % 3]}" for k, v in enumerate(sorted(nodes))}
+
     def population_size(self, config: RunConfig) -> int:
         return 3 * config.fcp.agents
 

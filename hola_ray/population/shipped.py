@@ -25,11 +25,13 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from hola_ray.evaluation.pools import MANIFEST, ROOT, pooled_files, sha256
+from hola_ray import homes
+from hola_ray.evaluation.pools import pooled_files
+from hola_ray.homes import MANIFEST, sha256
 from hola_ray.population.rundir import RunDir
 
 FORMAT = "hola_ray.population/1"
-POPULATIONS_DIR = ROOT / "pools" / "populations"
+POPULATIONS_DIR = homes.POPULATIONS
 NONE = "none"
 """`pretrain.population` when a run pre-trains its own generation 0"""
 
@@ -123,15 +125,8 @@ def package(
 
 
 def read(folder: Path) -> dict[str, Any]:
-    path = folder / MANIFEST
-    try:
-        manifest = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise PopulationError(f"{path}: cannot be read ({err}); restore it from git") from err
-    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
-        got = manifest.get("format") if isinstance(manifest, dict) else None
-        raise PopulationError(f"{path}: not a {FORMAT} manifest (format {got!r})")
-    return manifest
+    missing = f"not a shipped population (python -m hola_ray.populations build {folder.name})"
+    return homes.read_manifest(folder, FORMAT, PopulationError, missing)
 
 
 def verify(folder: Path, manifest: Mapping[str, Any]) -> None:
@@ -140,17 +135,7 @@ def verify(folder: Path, manifest: Mapping[str, Any]) -> None:
     for entry in manifest["members"].values():
         expected[entry["file"]] = entry["sha256"]
         expected[entry["state_file"]] = entry["state_sha256"]
-    for relative, digest in sorted(expected.items()):
-        path = folder / relative
-        if not path.is_file():
-            raise PopulationError(f"population {folder.name}: {path} is missing")
-        got = sha256(path)
-        if got != digest:
-            raise PopulationError(
-                f"population {folder.name}: {path} has sha256 {got[:12]}…, the manifest "
-                f"says {digest[:12]}…: the file changed after the build; restore it (git "
-                f"checkout {path}) or rebuild the population"
-            )
+    homes.verify_files(folder, expected, f"population {folder.name}", PopulationError)
 
 
 def check_layout(folder: Path, manifest: Mapping[str, Any], layout: Mapping[str, Any]) -> None:
