@@ -131,7 +131,7 @@ def test_a_run_killed_between_its_last_generation_and_learner_pt_is_not_done(smo
 
     said: list[str] = []
     trainer = Trainer(config, out, progress=False)
-    trainer._say = said.append
+    trainer.say = said.append
     trainer._catch_up(1)
     assert said == [
         "best.pt written again from generation 1",

@@ -195,7 +195,7 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
     if saved is not None:
         mep.set_trained_weights(states)
         metrics["pretrain_resumed_at"] = done
-        trainer._say(f"pre-train: resumed after {done:,} env steps ({trainer.run.pretrain})")
+        trainer.say(f"pre-train: resumed after {done:,} env steps ({trainer.run.pretrain})")
     resumed = done
     try:
         while done < p.env_steps:
@@ -204,7 +204,7 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
                 mep.stop()
                 mep = oracle(0.0)
                 mep.set_trained_weights(states)
-                trainer._say(f"pre-train: α 0 from {done:,} env steps on (pretrain.alpha_until)")
+                trainer.say(f"pre-train: α 0 from {done:,} env steps on (pretrain.alpha_until)")
             budget = min(p.check_every, p.env_steps - done) if p.until else p.env_steps - done
             if bonus_ends(p.alpha_until) and done < p.alpha_until:
                 budget = min(budget, p.alpha_until - done)
@@ -223,7 +223,7 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
                 "pretrain_members_success_min": round(min(f["success"] for f in figures), 4),
                 "pretrain_members_collision_max": round(max(f["collision"] for f in figures), 4),
             }
-            trainer._say(
+            trainer.say(
                 f"pre-train: {done:,} env steps; members as copies: success "
                 + ", ".join(f"{f['success']:.0%}" for f in figures)
                 + ", collision "

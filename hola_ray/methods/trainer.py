@@ -85,7 +85,7 @@ class Trainer:
         owned = not lock.held
         note = lock.acquire()
         if note:
-            self._say(note)
+            self.say(note)
         try:
             return self._fit()
         finally:
@@ -102,7 +102,7 @@ class Trainer:
         zero = self.zero
         self.run.create(c.to_yaml())
         with clock.phase("population"):
-            generation_zero.take(zero, self.run, self._say)
+            generation_zero.take(zero, self.run, self.say)
         here = ray.get_runtime_context().get_node_id()
         self.coord = Coordinator.options(
             name=coordinator_name(str(self.run_dir)),
@@ -140,7 +140,7 @@ class Trainer:
                 written.append(last := 0)
                 self._saved(0)
             else:
-                self._say(f"resuming after generation {last} in {self.run.root}")
+                self.say(f"resuming after generation {last} in {self.run.root}")
                 if not self.run.monitored(last):  # stopped before its monitors were written
                     self._submit_monitors(last, self.run.load_learner_export(last))
                     self._complete()
@@ -154,7 +154,7 @@ class Trainer:
                 with clock.phase("seat"):
                     learner = self.run.load_learner_state(last)
                     if learner is None and last == 0:
-                        start = generation_zero.starting_member(zero, c, self.coord, self._say)
+                        start = generation_zero.starting_member(zero, c, self.coord, self.say)
                         if start is not None:
                             self.start_node, learner = start
                     if learner is not None:
@@ -216,7 +216,7 @@ class Trainer:
             if key is not None:  # what another run of the same pre-training may adopt
                 (self.run.generation(0) / KEY_FILE).write_text(key)
         self._submit_monitors(0, None)
-        self._say(
+        self.say(
             f"gen 0: {built.said} in {pretrain_s:.0f}s; "
             f"G_0 success {row['population_success']:.0%}, "
             f"return {row['population_return']:.1f}"
@@ -286,7 +286,7 @@ class Trainer:
             f"{row['learner_success_se']:.0%}, collision {row['learner_collision']:.0%}, "
             f"return {row['learner_return']:.1f}; {method.verdict(c, decision)}; "
         )
-        self._say(
+        self.say(
             f"gen {g}: {judged_as}std {row.get('std_median', 0):.2f}; "
             f"oracle {oracle_s:.0f}s ({stats.env_steps_per_s:.0f} steps/s)"
         )
@@ -318,7 +318,7 @@ class Trainer:
             best = g >= 1 and self.run.keep_best(g, row, self.run.load_learner_export(g))
         kept = "best so far" if best else f"best stays generation {self.run.best_generation()}"
         said = monitored(figures, row, self.config.env.n_pursuers)
-        self._say(f"gen {g} monitored: {said}{kept if g >= 1 else ''}".rstrip("; "))
+        self.say(f"gen {g} monitored: {said}{kept if g >= 1 else ''}".rstrip("; "))
         return True
 
     def _catch_up(self, last: int) -> None:
@@ -333,12 +333,12 @@ class Trainer:
             self.run.best_info.unlink(missing_ok=True)
             state = self.run.load_learner_state(best)
             self.run.keep_best(best, self.run.metrics(best), self.config.export(state))
-            self._say(f"best.pt written again from generation {best}")
+            self.say(f"best.pt written again from generation {best}")
         if self.run.learner_generation() != last:
             state = self.run.load_learner_state(last)
             decision = self.run.read_json(last, "state.json")["decision"]
             self.run.save_latest(last, self.config.method, self.config.export(state), decision)
-            self._say(f"learner.pt written again from generation {last}")
+            self.say(f"learner.pt written again from generation {last}")
 
     def _judge_in_population(self, g: int, export, learner_state, slot: int | None = None):
         """The Grapher weighs the learner's hyperedges; the coordinator decides (pbt: on
@@ -386,7 +386,8 @@ class Trainer:
         if self.saved is not None:
             self.saved(g)
 
-    def _say(self, text: str) -> None:
+    def say(self, text: str) -> None:
+        """One line of the run's log (a method's generation 0 says what it built here)."""
         print(text, flush=True)
 
 
