@@ -27,6 +27,10 @@ POPULATIONS = POOLS / "populations"
 RUNS = Path("runs")
 """where every command writes by default: `runs/` in the current directory"""
 MANIFEST = "manifest.json"
+GENERATION_STATE = "learner.rllib.pt"
+"""in a run's generation folder: the learner's RLlib module state (what a resume loads)"""
+GENERATION_EXPORT = "learner.pt"
+"""in a run's generation folder: the learner's plain-torch export (what is played)"""
 
 
 def sha256(path: Path) -> str:

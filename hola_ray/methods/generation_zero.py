@@ -136,7 +136,7 @@ def starting_member(
             f"gen 1: the learner starts from member {node} (η {best['eta'] or 0:.3f}, "
             f"the highest of {len(members)})"
         )
-        return node, ray.get(coord.member_states.remote([node]))[node]
+        return node, ray.get(coord.member_states.remote([node]))[node].load()
     if zero.learner_start == "shipped":
         c = config
         donor, manifest, node, eta = shipped.preferred_member(

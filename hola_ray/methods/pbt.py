@@ -144,7 +144,7 @@ class PBT(Method):
         slots = ray.get(trainer.coord.slots.remote())
         slot = (g - 1) % len(slots)
         node = next(v for v, s in slots.items() if s == slot)
-        state = ray.get(trainer.coord.member_states.remote([node]))[node]
+        state = trainer.member_states([node])[node]
         oracle.set_trained_weights({LEARNER: state})
         hyper = ray.get(trainer.coord.agent_hyper.remote(slot))
         oracle.reset_learner(hyper["lr"], hyper["entropy_coef"])

@@ -36,7 +36,7 @@ from hola_ray.population.coordinator import Coordinator, coordinator_name, run_i
 from hola_ray.population.evaluators import EvaluatorPool
 from hola_ray.population.grapher import edge_summary, weigh
 from hola_ray.population.lock import RunLock
-from hola_ray.population.rundir import RunDir
+from hola_ray.population.rundir import RunDir, TorchFile
 from hola_ray.population.state import EdgeResult, edge_seed
 from hola_ray.process import NAMESPACE
 
@@ -191,7 +191,8 @@ class Trainer:
             exports = [c.export(s) for s in states_list]
         pretrain_s = time.perf_counter() - start
         with clock.phase("coordinator"):
-            ray.get(self.coord.init_population.remote(exports, states_list))
+            files = [TorchFile.of(x) for x in exports], [TorchFile.of(s) for s in states_list]
+            ray.get(self.coord.init_population.remote(*files))
 
         self.coord.set_phase.remote("grapher")
         results, grapher = self._grapher(0)
@@ -233,7 +234,7 @@ class Trainer:
             if not method.self_play:
                 oracle.seat(
                     ray.get(self.coord.plan.remote(slot)),
-                    lambda nodes: ray.get(self.coord.member_states.remote(nodes)),
+                    self.member_states,
                     salt=g,
                 )
             oracle.reseed(g)  # generation g samples alike, resumed or not
@@ -272,7 +273,13 @@ class Trainer:
         with clock.phase("commit"):  # in the next row's account
             row = ray.get(
                 self.coord.commit.remote(
-                    g, metrics, learner_state, decision, stats.iteration_log, export, training
+                    g,
+                    metrics,
+                    TorchFile.of(learner_state),
+                    decision,
+                    stats.iteration_log,
+                    TorchFile.of(export),
+                    TorchFile.of(training),
                 )
             )
             # learner.json, written last, says the generation is saved (best.pt follows
@@ -301,7 +308,7 @@ class Trainer:
         members = None
         if not self.config.strategy.self_play:
             nodes = sorted(ray.get(self.coord.slots.remote()))
-            members = ray.get(self.coord.exports.remote(nodes))
+            members = self.exports(nodes)
         self.coord.set_phase.remote("monitors")
         self.monitoring.submit(g, export, members)
 
@@ -345,7 +352,8 @@ class Trainer:
         the agent of `slot`)."""
         self.coord.set_phase.remote("grapher")
         with self.clock.phase("grapher"):
-            candidate = ray.get(self.coord.propose.remote(export, learner_state))
+            files = TorchFile.of(export), TorchFile.of(learner_state)
+            candidate = ray.get(self.coord.propose.remote(*files))
         results, grapher = self._grapher(g)
         self.coord.set_phase.remote("coordinator")
         with self.clock.phase("coordinator"):
@@ -368,7 +376,7 @@ class Trainer:
         with self.clock.phase("grapher"):
             edges = ray.get(self.coord.edges_to_evaluate.remote(g))
             nodes = sorted({v for e in edges for v in e})
-            exports = ray.get(self.coord.exports.remote(nodes))
+            exports = self.exports(nodes)
             return weigh(
                 edges,
                 exports,
@@ -389,6 +397,14 @@ class Trainer:
     def say(self, text: str) -> None:
         """One line of the run's log (a method's generation 0 says what it built here)."""
         print(text, flush=True)
+
+    def exports(self, nodes: list[int]) -> dict[int, dict[str, Any]]:
+        """The plain-torch exports of nodes, as the coordinator holds them."""
+        return {v: f.load() for v, f in ray.get(self.coord.exports.remote(nodes)).items()}
+
+    def member_states(self, nodes: list[int]) -> dict[int, dict[str, Any]]:
+        """The RLlib module states of members, to seat them as partners or train on."""
+        return {v: f.load() for v, f in ray.get(self.coord.member_states.remote(nodes)).items()}
 
 
 def make_oracle(config: RunConfig, seed: int | None = None) -> Oracle:

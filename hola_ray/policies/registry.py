@@ -6,6 +6,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from hola_ray.env.config import PursuitConfig
+from hola_ray.homes import GENERATION_EXPORT, GENERATION_STATE
 from hola_ray.policies.apf import APFA
 from hola_ray.policies.base import Policy
 from hola_ray.policies.greedy import Greedy
@@ -29,12 +30,6 @@ def make_policy(name: str, config: PursuitConfig) -> Policy:
     if key not in _FACTORIES:
         raise ValueError(f"unknown policy {name!r}; known: {', '.join(policy_names())}")
     return _FACTORIES[key](config)
-
-
-GENERATION_STATE = "learner.rllib.pt"
-"""in a generation folder: the learner's RLlib module state (what a resume loads)"""
-GENERATION_EXPORT = "learner.pt"
-"""in a generation folder: the learner's plain-torch export (what is played)"""
 
 
 def policy_file(path: str | Path) -> Path:

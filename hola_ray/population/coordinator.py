@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,7 +20,7 @@ import ray
 
 from hola_ray.population.config import PopulationConfig
 from hola_ray.population.rules import Rules
-from hola_ray.population.rundir import RunDir
+from hola_ray.population.rundir import RunDir, TorchFile
 from hola_ray.population.state import Decision, EdgeResult, Population
 
 
@@ -27,7 +28,6 @@ def run_id(run_dir: str) -> str:
     """A run's name on the cluster: its folder name and a hash of its full path, so that two
     runs in folders of one name under different parents never share actor names."""
     import hashlib
-    from pathlib import Path
 
     path = Path(run_dir).resolve()
     return f"{path.name}-{hashlib.blake2b(str(path).encode(), digest_size=4).hexdigest()}"
@@ -42,6 +42,24 @@ def phi_entropy(phi: Mapping[Any, float]) -> float:
     """Shannon entropy of φ in nats (log |V| when uniform)."""
     p = np.array([v for v in phi.values() if v > 0], dtype=np.float64)
     return float(-(p * np.log(p)).sum()) if p.size else 0.0
+
+
+def summary_writer(folder: Path) -> Any:
+    """tensorboardX's writer, imported without torch unless this process has it:
+    tensorboardX imports torch where it can only to tell a tensor from an array
+    (tensorboardX/writer.py), and the coordinator writes floats. Its process so never
+    loads torch (`TorchFile`)."""
+    import sys
+
+    hidden = "torch" not in sys.modules
+    if hidden:
+        sys.modules["torch"] = None  # type: ignore[assignment]  # `import torch` fails
+    try:
+        from tensorboardX import SummaryWriter
+    finally:
+        if hidden:
+            del sys.modules["torch"]
+    return SummaryWriter(str(folder))
 
 
 @ray.remote(num_cpus=0, max_restarts=0)
@@ -59,7 +77,6 @@ class Coordinator:
         method: str = "",
     ):
         from ray.util.metrics import Gauge
-        from tensorboardX import SummaryWriter
 
         self.rules, self.seed, self.method = rules, seed, method
         self.edges_per_learner = edges_per_learner
@@ -76,7 +93,7 @@ class Coordinator:
             self.last_metrics = self.run.metrics(self.generation)
         self.phase = "idle"
         self._edges: list[EdgeResult] = []
-        self._pending_exports: dict[int, tuple[dict, dict]] = {}
+        self._pending: dict[int, tuple[TorchFile, TorchFile]] = {}  # node → export, state
         tags = ("run",)
         self._tags = {"run": run_id(str(self.run.root))}
         self._gauges = {
@@ -85,7 +102,7 @@ class Coordinator:
             "phi_entropy": Gauge("hola_phi_entropy", "entropy of phi (nats)", tags),
             "population_size": Gauge("hola_population_size", "members", tags),
         }
-        self._tb = SummaryWriter(str(self.run.tensorboard))
+        self._tb = summary_writer(self.run.tensorboard)
 
     # ---- the generation's steps ---------------------------------------------------------
     def last_completed(self) -> int | None:
@@ -95,19 +112,19 @@ class Coordinator:
         self.phase = phase
 
     def init_population(
-        self, exports: Sequence[Mapping[str, Any]], states: Sequence[Mapping[str, Any]]
+        self, exports: Sequence[TorchFile], states: Sequence[TorchFile]
     ) -> list[int]:
-        """Seat the initial members (generation 0)."""
+        """Seat the initial members (generation 0): each one's export and RLlib state."""
         nodes = self.population.add_initial(len(exports))
         for node, export, state in zip(nodes, exports, states, strict=True):
-            self._pending_exports[node] = (dict(export), dict(state))
+            self._pending[node] = (export, state)
         self.rules.setup(self.population)
         return nodes
 
-    def propose(self, export: Mapping[str, Any], state: Mapping[str, Any]) -> int:
+    def propose(self, export: TorchFile, state: TorchFile) -> int:
         """Add the learner's snapshot as this generation's candidate node."""
         node = self.population.propose()
-        self._pending_exports[node] = (dict(export), dict(state))
+        self._pending[node] = (export, state)
         return node
 
     def edges_to_evaluate(self, generation: int) -> list[tuple[int, ...]]:
@@ -117,17 +134,18 @@ class Coordinator:
         rng = np.random.default_rng([self.seed, generation, 1])
         return self.population.candidate_edges(self.edges_per_learner, rng)
 
-    def exports(self, nodes: Sequence[int]) -> dict[int, dict[str, Any]]:
+    def exports(self, nodes: Sequence[int]) -> dict[int, TorchFile]:
         """Plain-torch exports of nodes (pending ones from memory, members from disk)."""
-        return self._weights(nodes, 0, self.run.load_member_export)
+        return self._weights(nodes, 0)
 
-    def member_states(self, nodes: Sequence[int]) -> dict[int, dict[str, Any]]:
+    def member_states(self, nodes: Sequence[int]) -> dict[int, TorchFile]:
         """RLlib module states of members, to seat them as frozen partners."""
-        return self._weights(nodes, 1, self.run.load_member_state)
+        return self._weights(nodes, 1)
 
-    def _weights(self, nodes, which: int, load) -> dict[int, dict[str, Any]]:
-        pending = self._pending_exports
-        return {v: pending[v][which] if v in pending else load(v) for v in nodes}
+    def _weights(self, nodes: Sequence[int], which: int) -> dict[int, TorchFile]:
+        path = (self.run.member_export, self.run.member_state)[which]
+        pending = self._pending
+        return {v: pending[v][which] if v in pending else TorchFile.read(path(v)) for v in nodes}
 
     def record(self, results: Sequence[EdgeResult]) -> None:
         self.population.record(results)
@@ -141,11 +159,10 @@ class Coordinator:
         decision = self.rules.decide(self.population, slot, rng)
         source = decision.copied_from
         if source is not None:
-            export = self._weights([source], 0, self.run.load_member_export)[source]
-            state = self._weights([source], 1, self.run.load_member_state)[source]
-            self._pending_exports[decision.candidate] = (dict(export), dict(state))
+            files = self._weights([source], 0)[source], self._weights([source], 1)[source]
+            self._pending[decision.candidate] = files
         elif not decision.accepted:
-            self._pending_exports.pop(decision.candidate, None)
+            self._pending.pop(decision.candidate, None)
         return decision
 
     def agent_hyper(self, slot: int) -> dict[str, float]:
@@ -156,20 +173,20 @@ class Coordinator:
         self,
         generation: int,
         metrics: Mapping[str, Any],
-        learner_state: Mapping[str, Any] | None,
+        learner_state: TorchFile | None,
         decision: Decision | None = None,
         iterations: Sequence[Mapping[str, float]] = (),
-        learner_export: Mapping[str, Any] | None = None,
-        learner_training: Mapping[str, Any] | None = None,
+        learner_export: TorchFile | None = None,
+        learner_training: TorchFile | None = None,
     ) -> dict[str, Any]:
         """Persist generation `generation` (its metrics and the Oracle's per-iteration log,
         the learner's weights, export and training state) and publish its metrics; returns
         the metrics row."""
         start = time.perf_counter()
-        for node, (export, state) in self._pending_exports.items():
+        for node, (export, state) in self._pending.items():
             if node in self.population.slots:
                 self.run.save_member(node, export, state)
-        self._pending_exports.clear()
+        self._pending.clear()
         phi = self.rules.phi(self.population)
         eta = self.population.eta()
         row = dict(metrics)

@@ -29,6 +29,9 @@
       population/                 the accepted population after the last generation:
                                   slot_K.pt per member, members.json (slot → node, η, φ)
 
+The coordinator writes and reads the torch files as bytes (`TorchFile`): torch is loaded
+where they are made and opened, in the driver, never in the coordinator's process.
+
 A generation folder is written under a temporary name and renamed into place, so it is
 either complete or absent: the last complete folder is where `--resume` starts. The files
 at the top (learner.pt, learner.json, best.pt, best.json) are written after it; a run killed
@@ -39,18 +42,18 @@ in between gets them again from the generation folders when it is resumed
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 import pickle
 import shutil
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
-import torch
 
-from hola_ray.policies.registry import GENERATION_EXPORT, GENERATION_STATE
+from hola_ray.homes import GENERATION_EXPORT, GENERATION_STATE
 
 GENERATION_TRAINING = "learner.training.pt"
 """in a generation folder: the learner's optimizer state and schedule position"""
@@ -99,15 +102,15 @@ class RunDir:
     def member_state(self, node: int) -> Path:
         return self.members / f"node_{node:04d}.rllib.pt"
 
-    def save_member(self, node: int, export: Mapping[str, Any], state: Mapping[str, Any]) -> None:
-        _atomic_torch_save(dict(export), self.member_export(node))
-        _atomic_torch_save(dict(state), self.member_state(node))
+    def save_member(self, node: int, export: Saved, state: Saved) -> None:
+        _atomic_torch_save(export, self.member_export(node))
+        _atomic_torch_save(state, self.member_state(node))
 
     def load_member_state(self, node: int) -> dict[str, Any]:
         return load_state(self.member_state(node))
 
     def load_member_export(self, node: int) -> dict[str, Any]:
-        return torch.load(self.member_export(node), map_location="cpu", weights_only=True)
+        return load_state(self.member_export(node))
 
     def write_population(self, members: Mapping[int, Mapping[str, Any]], generation: int) -> None:
         """`population/`: the accepted population after `generation`, apart from the final
@@ -154,7 +157,7 @@ class RunDir:
 
     def save_learner(self, export: Mapping[str, Any]) -> None:
         """The latest learner as a plain-torch export (`MLPPolicy.load(config, path)`)."""
-        _atomic_torch_save(dict(export), self.learner)
+        _atomic_torch_save(export, self.learner)
 
     def save_latest(
         self, g: int, method: str, export: Mapping[str, Any], decision: Mapping | None
@@ -203,7 +206,7 @@ class RunDir:
         }
         if validated:
             info |= {k: float(row[k]) for k in ("val_success", "val_collision")}
-        _atomic_torch_save(dict(export), self.best)
+        _atomic_torch_save(export, self.best)
         _atomic_write_text(self.best_info, json.dumps(info, indent=1))
         return True
 
@@ -246,9 +249,9 @@ class RunDir:
         self,
         g: int,
         files: Mapping[str, Any],
-        learner_state: Mapping[str, Any] | None,
-        learner_export: Mapping[str, Any] | None = None,
-        learner_training: Mapping[str, Any] | None = None,
+        learner_state: Saved | None,
+        learner_export: Saved | None = None,
+        learner_training: Saved | None = None,
     ) -> Path:
         """Write generation g's folder atomically: JSON files from `files`, the learner's
         RLlib state, its plain-torch export (which `load_policy` plays) and its training
@@ -261,12 +264,13 @@ class RunDir:
         tmp.mkdir(parents=True)
         for name, payload in files.items():
             (tmp / name).write_text(json.dumps(payload, indent=1))
-        if learner_state is not None:
-            torch.save(dict(learner_state), tmp / GENERATION_STATE)
-        if learner_export is not None:
-            torch.save(dict(learner_export), tmp / GENERATION_EXPORT)
-        if learner_training is not None:
-            torch.save(dict(learner_training), tmp / GENERATION_TRAINING)
+        for saved, name in (
+            (learner_state, GENERATION_STATE),
+            (learner_export, GENERATION_EXPORT),
+            (learner_training, GENERATION_TRAINING),
+        ):
+            if saved is not None:
+                _torch_save(saved, tmp / name)
         _fsync_dir(tmp)
         os.rename(tmp, final)
         _fsync_dir(self.generations)
@@ -326,9 +330,7 @@ class RunDir:
     def load_learner_export(self, g: int) -> dict[str, Any] | None:
         """Generation g's learner as its plain-torch export (None for pre-training)."""
         path = self.generation(g) / GENERATION_EXPORT
-        if not path.exists():
-            return None
-        return torch.load(path, map_location="cpu", weights_only=True)
+        return load_state(path) if path.exists() else None
 
     def load_training_state(self, g: int) -> dict[str, Any] | None:
         """Generation g's learner training state (`Oracle.training_state`); None in a folder
@@ -437,11 +439,14 @@ _ARRAY_GLOBALS = [
 """what pickling a numpy array names: its reconstructor, its type and its dtype"""
 
 
-def load_state(path: Path) -> dict[str, Any]:
-    """An RLlib module state (name → numpy array) read with `weights_only=True`: tensors,
-    plain data and numpy arrays (allowed by name), nothing else unpickled, so a run
-    directory copied from elsewhere cannot run code on `--resume`. A file that would
-    (any other global) is refused in one line naming it."""
+def load_state(path: Path | BinaryIO, name: str | None = None) -> dict[str, Any]:
+    """A torch file (an RLlib module state, name → numpy array, or a plain-torch export)
+    read with `weights_only=True`: tensors, plain data and numpy arrays (allowed by name),
+    nothing else unpickled, so a run directory copied from elsewhere cannot run code on
+    `--resume`. A file that would (any other global) is refused in one line naming it
+    (`name`, else the path)."""
+    import torch
+
     try:
         with torch.serialization.safe_globals(_ARRAY_GLOBALS):
             return torch.load(path, map_location="cpu", weights_only=True)
@@ -449,13 +454,54 @@ def load_state(path: Path) -> dict[str, Any]:
         lines = [x.strip() for x in str(err).splitlines() if x.strip()]
         said = next((x for x in lines if "GLOBAL" in x or "Unsupported" in x), lines[-1])
         raise UnsafeFile(
-            f"{path}: refused, it holds more than tensors, arrays and plain data ({said})"
+            f"{name or path}: refused, it holds more than tensors, arrays and plain data ({said})"
         ) from None
 
 
-def _atomic_torch_save(obj: Any, path: Path) -> None:
+class TorchFile:
+    """A torch file as bytes: made (`of`) and opened (`load`) where torch is loaded, written
+    and read as it is by the coordinator, which so never imports torch (about 2 s of CPU at
+    every run's start, most of an idle coordinator's)."""
+
+    __slots__ = ("data",)
+
+    def __init__(self, data: bytes):
+        self.data = data
+
+    @classmethod
+    def of(cls, obj: Mapping[str, Any]) -> TorchFile:
+        """What `torch.save(dict(obj), path)` would write."""
+        import torch
+
+        buffer = io.BytesIO()
+        torch.save(dict(obj), buffer)
+        return cls(buffer.getvalue())
+
+    @classmethod
+    def read(cls, path: Path) -> TorchFile:
+        return cls(path.read_bytes())
+
+    def load(self) -> dict[str, Any]:
+        """Its contents, as `load_state` reads a file."""
+        return load_state(io.BytesIO(self.data), name="a torch file from the coordinator")
+
+
+Saved = Mapping[str, Any] | TorchFile
+"""what RunDir writes as a torch file: a mapping (saved here with torch) or its bytes"""
+
+
+def _torch_save(obj: Saved, path: Path) -> None:
+    if isinstance(obj, TorchFile):
+        path.write_bytes(obj.data)
+    else:
+        import torch
+
+        torch.save(dict(obj), path)
+
+
+def _atomic_torch_save(obj: Saved, path: Path) -> None:
     tmp = path.with_name(path.name + ".tmp")
-    torch.save(obj, tmp)
+    _torch_save(obj, tmp)
     os.replace(tmp, path)
 
 
