@@ -70,7 +70,7 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
         known = ", ".join(sorted(p.stem for p in CONFIGS.glob("*.yaml"))) or "(none)"
         raise PopulationError(f"no population config {path}; the configs: {known}")
     config = RunConfig.from_yaml(path)
-    if config.generations != 0 or config.strategy.population_kind is None:
+    if config.generations != 0 or config.strategy.origin.kind is None:
         raise PopulationError(
             f"{path}: a population config trains generation 0 only (generations: 0) of a "
             "method with a population"
@@ -95,7 +95,7 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
         run.root,
         out,
         name=name,
-        kind=config.strategy.population_kind,
+        kind=config.strategy.origin.kind,
         layout=config.layout(),
         provenance={
             "commit": commit_id(),

@@ -23,9 +23,7 @@ def test_the_default_run_adopts_a_shipped_population_that_fits_it():
     config = RunConfig.from_dict(DEFAULT)
     name = config.pretrain.population
     assert name != shipped.NONE, "the embedded default pre-trains its own generation 0"
-    folder, manifest = shipped.load(
-        name, config.seed, config.layout(), config.strategy.population_kind
-    )
+    folder, manifest = shipped.load(name, config.seed, config.layout(), config.strategy.origin.kind)
     assert manifest["kind"] == "mep"
     assert len(manifest["members"]) == config.population.initial_size
     assert (folder.generation(0) / "edges.json").is_file()

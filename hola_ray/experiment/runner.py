@@ -387,8 +387,18 @@ class Runner:
         png, _ = plot(figure_input, self.out)
         png.replace(self.out / "figure.png")
         (self.out / "evaluation.md").unlink(missing_ok=True)
+        from hola_ray.population.rundir import PHI_TIE
+
+        same = sorted(t for t, x in trials.items() if x.get("phi_tv_max", 1.0) <= PHI_TIE)
+        note = (
+            f"\nφ never departed from the rival rule's by more than {PHI_TIE} (total "
+            f"variation, every generation) in: {', '.join(same)}; there the two rules drew "
+            "partners alike.\n"
+            if same
+            else ""
+        )
         (self.out / "results.md").write_text(
-            results_table(figure_input, differences, len(self.exp.seeds))
+            results_table(figure_input, differences, len(self.exp.seeds)) + note
         )
         return results
 
@@ -406,9 +416,10 @@ class Runner:
 
     def budget_spent(self, trial: str) -> dict[str, Any]:
         """What a trial's training took: env steps, the learner's own transitions and
-        gradient steps (cumulative, at its last generation), pre-training env steps, and the
-        wall time of all its generations."""
-        from hola_ray.population.rundir import RunDir
+        gradient steps (cumulative, at its last generation), pre-training env steps, the
+        wall time of all its generations, and for a method with a rival rule the largest
+        distance between its φ and the rival's (`phi_tv_max`)."""
+        from hola_ray.population.rundir import RunDir, phi_departure
 
         rows = RunDir(self.trial_dir(trial)).metrics_rows()
         if not rows:
@@ -419,7 +430,9 @@ class Runner:
             value = row.get(key, "")
             return float(value) if value not in ("", None) else 0.0
 
+        departed = phi_departure(rows)
         return {
+            **({} if departed is None else {"phi_tv_max": round(departed, 6)}),
             "env_steps": int(number(last, "env_steps")),
             "learner_samples": int(number(last, "learner_samples")),
             "gradient_steps": int(number(last, "gradient_steps")),

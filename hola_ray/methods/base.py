@@ -43,6 +43,24 @@ class Built:
 
 
 @dataclass(frozen=True)
+class Origin:
+    """Where a method's generation 0 comes from (`Method.origin`), which
+    `generation_zero.resolve` reads before Ray starts."""
+
+    kind: str | None = "mep"
+    """what builds it (`build_population`); a shipped population of this kind may replace
+    it (`pretrain.population`). None: the method has no population"""
+    also: tuple[str, ...] = ()
+    """other kinds of shipped population it may take as generation 0"""
+    shared: bool = False
+    """generation 0 is MEP's population, the same for every method that says so: one run
+    may adopt another's (`RunConfig.generation_zero_key`)"""
+    sets_learner: bool = False
+    """each generation puts its own weights into the learner (`before_training`; PBT
+    trains its agents in turn): `pretrain.learner_start` does not apply"""
+
+
+@dataclass(frozen=True)
 class Uniform:
     """Rules: partners drawn uniformly from the members; a candidate joins when `admit`
     and its η rank is within the top m."""
@@ -76,17 +94,8 @@ class Method:
     is judged by its own team's rollout"""
     joins: ClassVar[bool] = True
     """the learner may join the population (False: a best response to a fixed one)"""
-    shares_generation_zero: ClassVar[bool] = False
-    """generation 0 is MEP's population, the same for every method that says so: one run
-    may adopt another's (`RunConfig.generation_zero_key`)"""
-    population_kind: ClassVar[str | None] = "mep"
-    """what builds its generation 0 (`build_population`): a shipped population of the same
-    kind may replace it (`pretrain.population`); None: the method has no population"""
-    also_seats: ClassVar[tuple[str, ...]] = ()
-    """other kinds of shipped population it may take as generation 0"""
-    sets_learner: ClassVar[bool] = False
-    """each generation puts its own weights into the learner (`before_training`; PBT
-    trains its agents in turn): `pretrain.learner_start` does not apply"""
+    origin: ClassVar[Origin] = Origin()
+    """where its generation 0 comes from"""
     section: ClassVar[tuple[str, type] | None] = None
     """the method's own run-config section (name, frozen dataclass with `validate()`), or
     None; `config.<name>` reads it"""
@@ -114,6 +123,11 @@ class Method:
     def rules(self, config: RunConfig) -> Any:
         """The coordinator's `Rules` for this run (`hola_ray.population.rules`)."""
         return Uniform(admit=self.joins)
+
+    def rival(self, config: RunConfig) -> Any:
+        """`Rules` whose φ each generation's φ is compared with, on the same hypergraph
+        (the row's `phi_tv`: their total variation distance), or None."""
+        return None
 
     # ---- the generation loop ------------------------------------------------------------
     def build_population(self, trainer: Trainer) -> Built:

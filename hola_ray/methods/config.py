@@ -274,7 +274,7 @@ class RunConfig:
         two runs with the same key build the same G_0 on one machine, so one may adopt the
         other's (`Trainer(adopt_from=…)`). None for methods whose population is not MEP's
         (self-play, FCP, PBT)."""
-        if not self.strategy.shares_generation_zero:
+        if not self.strategy.origin.shared:
             return None
         oracle = {
             k: v

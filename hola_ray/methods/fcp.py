@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 from hola_ray.env.checks import positive_int, require
-from hola_ray.methods.base import Built, Method, summed
+from hola_ray.methods.base import Built, Method, Origin, summed
 from hola_ray.oracle import LEARNER, Oracle
 from hola_ray.oracle.config import Seating
 
@@ -35,7 +35,7 @@ class FCPConfig:
 
 class FCP(Method):
     joins: ClassVar[bool] = False
-    population_kind: ClassVar[str | None] = "fcp"
+    origin: ClassVar[Origin] = Origin(kind="fcp")
     section = ("fcp", FCPConfig)
 
     def member_roles(self, nodes: list[int]) -> dict[int, str]:

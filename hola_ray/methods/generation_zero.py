@@ -69,7 +69,7 @@ def resolve(config: RunConfig, run: RunDir, adopt_from: Sequence[Path] = ()) -> 
         return GenerationZero("resume", start)
     if method.self_play:
         return GenerationZero("none", start)
-    if c.pretrain.shipped and method.population_kind is not None:
+    if c.pretrain.shipped and method.origin.kind is not None:
         return _shipped(c, start)
     key = c.generation_zero_key()
     for folder in adopt_from if key is not None else ():
@@ -85,17 +85,17 @@ def resolve(config: RunConfig, run: RunDir, adopt_from: Sequence[Path] = ()) -> 
 
 def _learner_start(c: RunConfig) -> Start:
     method = c.strategy
-    if c.pretrain.learner_start != "member" or method.sets_learner:
+    if c.pretrain.learner_start != "member" or method.origin.sets_learner:
         return "random"  # PBT: each generation starts from one of its agents
-    if method.population_kind is not None:
+    if method.origin.kind is not None:
         return "member"
     return "shipped" if c.pretrain.shipped else "random"
 
 
 def _shipped(c: RunConfig, start: Start) -> GenerationZero:
     method = c.strategy
-    kind, size = method.population_kind, method.population_size(c)
-    kinds = (kind, *method.also_seats)
+    size = method.population_size(c)
+    kinds = (method.origin.kind, *method.origin.also)
     donor, manifest = shipped.load(c.pretrain.population, c.seed, c.layout(), kinds)
     if len(manifest["members"]) != size:
         raise shipped.PopulationError(

@@ -16,7 +16,7 @@ import numpy as np
 
 from hola_ray.hypergraph import phi
 from hola_ray.hypergraph.phi import node_values
-from hola_ray.methods.base import Method, Uniform
+from hola_ray.methods.base import Method, Origin, Uniform
 from hola_ray.population.state import Decision, Population
 
 if TYPE_CHECKING:
@@ -53,7 +53,7 @@ class InverseValue:
 class HolaDrone(Method):
     """An MEP population grown open-endedly; partners drawn by φ of `kind` (or uniformly)."""
 
-    shares_generation_zero: ClassVar[bool] = True
+    origin: ClassVar[Origin] = Origin(shared=True)
 
     def __init__(self, name: str, kind: str, description: str):
         super().__init__(name, description)
@@ -64,6 +64,12 @@ class HolaDrone(Method):
         if self.kind == "uniform":
             return Uniform()
         return InverseValue(self.kind, config.population.phi_shift)
+
+    def rival(self, config: RunConfig) -> InverseValue:
+        """hola's φ is compared with hola_r's, hola_r's and uniform's with hola's: where
+        the two are the same draw (a regular hypergraph), the methods are one."""
+        kind = "mean_reward" if self.kind == "myerson" else "myerson"
+        return InverseValue(kind, config.population.phi_shift)
 
 
 HOLA = HolaDrone("hola", "myerson", "HOLA-Drone: partners drawn by the inverse Myerson value")

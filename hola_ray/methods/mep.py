@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from hola_ray.methods.base import Method
+from hola_ray.methods.base import Method, Origin
 from hola_ray.population.state import Decision, Population
 
 if TYPE_CHECKING:
@@ -41,7 +41,7 @@ class RankPriority:
 
 class MEP(Method):
     joins: ClassVar[bool] = False
-    shares_generation_zero: ClassVar[bool] = True
+    origin: ClassVar[Origin] = Origin(shared=True)
 
     def rules(self, config: RunConfig) -> RankPriority:
         return RankPriority(config.population.rank_beta)

@@ -16,7 +16,7 @@ import ray
 
 from hola_ray.env.checks import finite_in, require
 from hola_ray.hypergraph import centrality, rank_of
-from hola_ray.methods.base import Built, Method, Uniform, pretrain_population
+from hola_ray.methods.base import Built, Method, Origin, Uniform, pretrain_population
 from hola_ray.methods.config import PRETRAIN_SCHEMES
 from hola_ray.oracle import LEARNER, Oracle
 from hola_ray.population.state import Decision, Population
@@ -124,10 +124,8 @@ class ExploitExplore:
 
 class PBT(Method):
     section = ("pbt", PBTConfig)
-    population_kind: ClassVar[str | None] = "pbt"
-    sets_learner: ClassVar[bool] = True
-    also_seats: ClassVar[tuple[str, ...]] = ("mep",)
-    """MEP's members, trained with its entropy bonus, as the agents PBT starts from"""
+    origin: ClassVar[Origin] = Origin(kind="pbt", also=("mep",), sets_learner=True)
+    """also: MEP's members, trained with its entropy bonus, as the agents PBT starts from"""
 
     def rules(self, config: RunConfig) -> ExploitExplore:
         o = config.oracle

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from hola_ray.methods.base import Method
+from hola_ray.methods.base import Method, Origin
 
 
 class SelfPlay(Method):
     self_play: ClassVar[bool] = True
     joins: ClassVar[bool] = False
-    population_kind: ClassVar[str | None] = None
+    origin: ClassVar[Origin] = Origin(kind=None)
 
 
 SP = SelfPlay("sp", "self-play: one trained module in every seat")

@@ -2,17 +2,13 @@
 
 Every method (`hola_ray.methods.registry.METHODS`) runs this loop; it asks the method
 (`hola_ray.methods.base.Method`) where methods differ and has no branch on a method's name.
-Generation 0 builds the partner population (`Method.build_population`) and G_0; then each
-generation the Oracle trains the learner with partners as the coordinator's plan says (one
-call: slot → member and φ, drawn by the method's `Rules`), the Grapher weighs the
-learner's hyperedges and the coordinator accepts it into the population or not, as the
-method's `Rules` decide. A self-play method has no population: the Oracle seats the learner
-in every slot and the learner is judged by its own team's rollout. The driver only
-sequences the phases; the population lives in the coordinator actor, the hyperedge
-evaluations and the monitors in evaluation actors, the PPO in RLlib's env runners and
-learner. Every method leaves `learner.pt` (the latest learner) and `best.pt` with
-`best.json` (the generation whose learner did best with the validation teammates, or in
-its own judging without them)."""
+Generation 0 builds the partner population and G_0; then each generation the Oracle trains
+the learner with partners as the coordinator's plan says (slot → member and φ, drawn by the
+method's `Rules`), the Grapher weighs the learner's hyperedges and the coordinator accepts
+it or not. Self-play has no population: the learner sits in every slot and is judged by its
+own team. The driver only sequences the phases: the population lives in the coordinator
+actor, evaluations in evaluation actors, the PPO in RLlib. Every method leaves `learner.pt`
+and `best.pt` with `best.json` (the generation judged best, `RunDir.keep_best`)."""
 
 from __future__ import annotations
 
@@ -23,7 +19,6 @@ from pathlib import Path
 from typing import Any
 
 import ray
-from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
 from hola_ray import interrupt
 from hola_ray.clock import PhaseClock
@@ -32,13 +27,12 @@ from hola_ray.methods.config import RunConfig
 from hola_ray.methods.generation_zero import KEY_FILE, GenerationZero
 from hola_ray.methods.monitors import Monitoring, monitored, validation_teammates
 from hola_ray.oracle import LEARNER, Oracle
-from hola_ray.population.coordinator import Coordinator, coordinator_name, run_id
+from hola_ray.population.coordinator import opened, run_id, start_coordinator
 from hola_ray.population.evaluators import EvaluatorPool
 from hola_ray.population.grapher import edge_summary, weigh
 from hola_ray.population.lock import RunLock
-from hola_ray.population.rundir import RunDir, TorchFile
+from hola_ray.population.rundir import RunDir, TorchFile, phi_tie
 from hola_ray.population.state import EdgeResult, edge_seed
-from hola_ray.process import NAMESPACE
 
 
 @dataclass
@@ -103,19 +97,15 @@ class Trainer:
         self.run.create(c.to_yaml())
         with clock.phase("population"):
             generation_zero.take(zero, self.run, self.say)
-        here = ray.get_runtime_context().get_node_id()
-        self.coord = Coordinator.options(
-            name=coordinator_name(str(self.run_dir)),
-            namespace=NAMESPACE,
-            scheduling_strategy=NodeAffinitySchedulingStrategy(node_id=here, soft=False),
-        ).remote(
-            str(self.run.root.resolve()),
+        self.coord = start_coordinator(
+            self.run.root,
             method.rules(c),
             c.population,
             c.l,
             c.seed,
             c.grapher.edges_per_learner,
             c.method,
+            method.rival(c),
         )
         with clock.phase("actors"):
             self.pool.start()  # they start while this driver goes on
@@ -171,6 +161,9 @@ class Trainer:
                 oracle = None
             if self._complete():  # the last generation's monitors
                 self._saved(written[-1])
+            rival = method.rival(c)
+            if rival is not None and (said := phi_tie(self.run.metrics_rows(), rival.kind)):
+                self.say(said)
         finally:
             if oracle is not None:
                 oracle.stop()
@@ -212,7 +205,7 @@ class Trainer:
             **clock.close(),
         }
         with clock.phase("commit"):  # in the next row's account
-            row = ray.get(self.coord.commit.remote(0, metrics, None, None, stats.iteration_log))
+            row = ray.get(self.coord.commit.remote(0, metrics, None, stats.iteration_log))
             key = c.generation_zero_key()
             if key is not None:  # what another run of the same pre-training may adopt
                 (self.run.generation(0) / KEY_FILE).write_text(key)
@@ -271,16 +264,9 @@ class Trainer:
             **clock.close(),
         }
         with clock.phase("commit"):  # in the next row's account
+            files = tuple(TorchFile.of(x) for x in (learner_state, export, training))
             row = ray.get(
-                self.coord.commit.remote(
-                    g,
-                    metrics,
-                    TorchFile.of(learner_state),
-                    decision,
-                    stats.iteration_log,
-                    TorchFile.of(export),
-                    TorchFile.of(training),
-                )
+                self.coord.commit.remote(g, metrics, decision, stats.iteration_log, files)
             )
             # learner.json, written last, says the generation is saved (best.pt follows
             # its monitors: `_complete`)
@@ -400,11 +386,11 @@ class Trainer:
 
     def exports(self, nodes: list[int]) -> dict[int, dict[str, Any]]:
         """The plain-torch exports of nodes, as the coordinator holds them."""
-        return {v: f.load() for v, f in ray.get(self.coord.exports.remote(nodes)).items()}
+        return opened(self.coord.exports.remote(nodes))
 
     def member_states(self, nodes: list[int]) -> dict[int, dict[str, Any]]:
         """The RLlib module states of members, to seat them as partners or train on."""
-        return {v: f.load() for v, f in ray.get(self.coord.member_states.remote(nodes)).items()}
+        return opened(self.coord.member_states.remote(nodes))
 
 
 def make_oracle(config: RunConfig, seed: int | None = None) -> Oracle:

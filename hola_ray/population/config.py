@@ -54,8 +54,10 @@ class GrapherConfig:
 
     episodes_per_edge: int = 32
     """evaluation episodes behind each hyperedge weight"""
-    edges_per_learner: int = 0
-    """(l − 1)-sets of members sampled for the learner's hyperedges; 0 = every one"""
+    edges_per_learner: int = 3
+    """(l − 1)-sets of members sampled for the learner's hyperedges, as the paper's Grapher
+    builds them (§IV-B); 0 = every one, which keeps the hypergraph regular, and then φ
+    from the Myerson value is φ from the mean reward (docs/hola-r.md)"""
     workers: int = 2
     """evaluation actors (`hola_ray.population.evaluators`): they play a generation's
     hyperedge chunks side by side, and the monitors while the next generation trains; 0 =

@@ -44,6 +44,11 @@ def phi_entropy(phi: Mapping[Any, float]) -> float:
     return float(-(p * np.log(p)).sum()) if p.size else 0.0
 
 
+def total_variation(p: Mapping[int, float], q: Mapping[int, float]) -> float:
+    """½ Σ |p − q| over the nodes of either distribution (0: the same draw; 1: disjoint)."""
+    return 0.5 * sum(abs(p.get(v, 0.0) - q.get(v, 0.0)) for v in set(p) | set(q))
+
+
 def summary_writer(folder: Path) -> Any:
     """tensorboardX's writer, imported without torch unless this process has it:
     tensorboardX imports torch where it can only to tell a tensor from an array
@@ -75,11 +80,15 @@ class Coordinator:
         seed: int,
         edges_per_learner: int = 0,
         method: str = "",
+        rival: Rules | None = None,
     ):
         from ray.util.metrics import Gauge
 
         self.rules, self.seed, self.method = rules, seed, method
         self.edges_per_learner = edges_per_learner
+        self.rival = rival
+        """the rule whose φ each generation's is compared with (`phi_tv`), if any"""
+        self._phi_tv: float | None = None
         self.run = RunDir(run_dir)
         self.run.clean_partial()
         self.generation = self.run.last_completed()
@@ -173,15 +182,13 @@ class Coordinator:
         self,
         generation: int,
         metrics: Mapping[str, Any],
-        learner_state: TorchFile | None,
         decision: Decision | None = None,
         iterations: Sequence[Mapping[str, float]] = (),
-        learner_export: TorchFile | None = None,
-        learner_training: TorchFile | None = None,
+        learner: tuple[TorchFile, TorchFile, TorchFile] | None = None,
     ) -> dict[str, Any]:
-        """Persist generation `generation` (its metrics and the Oracle's per-iteration log,
-        the learner's weights, export and training state) and publish its metrics; returns
-        the metrics row."""
+        """Persist generation `generation` (its metrics and the Oracle's per-iteration log;
+        `learner`: the learner's RLlib state, export and training state) and publish its
+        metrics; returns the metrics row."""
         start = time.perf_counter()
         for node, (export, state) in self._pending.items():
             if node in self.population.slots:
@@ -206,12 +213,13 @@ class Coordinator:
             "eta.json": {str(k): v for k, v in eta.items()},
             "edges.json": [vars(r) | {"nodes": list(r.nodes)} for r in self._edges],
         }
+        if self._phi_tv is not None:  # the φ this generation trained with, against the rival's
+            row["phi_tv"] = round(self._phi_tv, 6)
+            self._phi_tv = None
         row["persist_s"] = round(time.perf_counter() - start, 4)
         files["metrics.json"] = row
         files["iterations.json"] = [dict(r) for r in iterations]
-        self.run.write_generation(
-            generation, files, learner_state, learner_export, learner_training
-        )
+        self.run.write_generation(generation, files, *(learner or (None, None, None)))
         if self.population.members:
             self.run.write_population(
                 {
@@ -271,6 +279,8 @@ class Coordinator:
         """What the Oracle's partner slots hold this generation: slot → (member node, φ), in
         the members' order; φ 0 for the member in `exclude_slot` (PBT's agent in training)."""
         phi = self.rules.phi(self.population, exclude_slot)
+        if self.rival is not None:
+            self._phi_tv = total_variation(phi, self.rival.phi(self.population, exclude_slot))
         return {self.population.slots[v]: (v, phi.get(v, 0.0)) for v in self.population.members}
 
     def view(self) -> dict[str, Any]:
@@ -297,3 +307,23 @@ class Coordinator:
 
     def close(self) -> None:
         self._tb.close()
+
+
+def start_coordinator(run_dir: Path, *args: Any) -> Any:
+    """The coordinator of the run in `run_dir` (`Coordinator`'s other arguments after it),
+    named for the folder and placed on this node: it writes the folder this driver reads."""
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+    from hola_ray.process import NAMESPACE
+
+    here = ray.get_runtime_context().get_node_id()
+    return Coordinator.options(
+        name=coordinator_name(str(run_dir)),
+        namespace=NAMESPACE,
+        scheduling_strategy=NodeAffinitySchedulingStrategy(node_id=here, soft=False),
+    ).remote(str(Path(run_dir).resolve()), *args)
+
+
+def opened(files: Any) -> dict[int, dict[str, Any]]:
+    """What the coordinator's `exports` or `member_states` (an object ref) gave, opened here."""
+    return {v: f.load() for v, f in ray.get(files).items()}

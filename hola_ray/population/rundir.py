@@ -47,7 +47,7 @@ import json
 import os
 import pickle
 import shutil
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -71,6 +71,29 @@ def best_score(row: Mapping[str, Any]) -> tuple[float, float]:
     if row.get("val_success") not in (None, ""):
         return float(row["val_success"]), -float(row["val_collision"])
     return float(row["learner_success"]), -float(row["learner_collision"])
+
+
+PHI_TIE = 0.01
+"""φ within this total variation of the rival rule's in every generation: one draw"""
+
+
+def phi_departure(rows: Sequence[Mapping[str, Any]]) -> float | None:
+    """The largest distance (`phi_tv`) between the φ a run trained with and its rival
+    rule's over its generations, or None for a run without a rival (`Method.rival`)."""
+    tv = [float(r["phi_tv"]) for r in rows if r.get("phi_tv") not in (None, "")]
+    return max(tv) if tv else None
+
+
+def phi_tie(rows: Sequence[Mapping[str, Any]], rival: str) -> str | None:
+    """What a run says when its φ never departed from its rival rule's (`rival`: its name)
+    by more than `PHI_TIE`; None when it did, or had no rival."""
+    departed = phi_departure(rows)
+    if departed is None or departed > PHI_TIE:
+        return None
+    return (
+        f"φ never departed from {rival}'s by more than {PHI_TIE} (at most {departed:.4f}, "
+        "total variation): this run drew its partners as that rule does"
+    )
 
 
 class RunDir:

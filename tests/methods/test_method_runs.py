@@ -15,7 +15,7 @@ import yaml
 from hola_ray import status
 from hola_ray.env.config import ConfigError, PursuitConfig, require
 from hola_ray.evaluation.rollout import rollout
-from hola_ray.methods.base import Method
+from hola_ray.methods.base import Method, Origin
 from hola_ray.methods.config import RunConfig
 from hola_ray.methods.generation_zero import KEY_FILE
 from hola_ray.methods.registry import register, unregister
@@ -472,7 +472,7 @@ class AlwaysTheFavourite:
 
 class Favourite(Method):
     joins = False
-    shares_generation_zero = True  # MEP's population, as Method builds it by default
+    origin = Origin(shared=True)  # MEP's population, as Method builds it by default
     section = ("favourite", FavouriteConfig)
 
     def rules(self, config: RunConfig) -> AlwaysTheFavourite:

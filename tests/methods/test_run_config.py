@@ -44,7 +44,7 @@ def test_a_method_without_a_population_takes_only_its_start_from_the_shipped_one
     from hola_ray.run import DEFAULT
 
     config = RunConfig.from_dict(DEFAULT | {"method": "sp"})
-    assert config.pretrain.shipped and config.strategy.population_kind is None
+    assert config.pretrain.shipped and config.strategy.origin.kind is None
     zero = resolve(config, RunDir(tmp_path / "sp"))
     assert (zero.source, zero.learner_start) == ("none", "shipped")
     alone = RunConfig.from_dict(DEFAULT | {"method": "sp", "pretrain": {"population": "none"}})

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from hola_ray.methods.hola import InverseValue
-from hola_ray.population.rundir import RunDir
+from hola_ray.population.coordinator import total_variation
+from hola_ray.population.rundir import RunDir, TorchFile, phi_departure, phi_tie
 from hola_ray.population.state import EdgeResult, Population, edge_seed
 
 
@@ -96,6 +97,42 @@ def test_hola_and_hola_r_part_only_when_a_sampled_candidate_joins():
     mv, mr = (rules[kind].phi(p) for kind, p in pops.items())
     assert set(mv) == set(mr) == {0, 1, 2, 3, 4}
     assert max(abs(mv[v] - mr[v]) for v in mv) > 0.01
+    # what a run logs as phi_tv, and says when it never passed PHI_TIE
+    assert total_variation(phi["myerson"], phi["mean_reward"]) == pytest.approx(0, abs=1e-12)
+    tv = total_variation(mv, mr)
+    assert tv == pytest.approx(0.5 * sum(abs(mv[v] - mr[v]) for v in mv)) and tv > 0.01
+    assert total_variation({0: 1.0}, {1: 1.0}) == 1.0
+    rows = [{"generation": 0}, {"phi_tv": 0.0}, {"phi_tv": 0.004}]
+    assert phi_departure(rows) == 0.004 and phi_departure(rows[:1]) is None
+    assert "never departed from myerson's by more than 0.01" in phi_tie(rows, "myerson")
+    assert phi_tie([*rows, {"phi_tv": tv}], "myerson") is None
+
+
+def test_the_coordinators_process_never_loads_torch(tmp_path):
+    """The coordinator writes and reads torch files as bytes (`TorchFile`) and imports
+    tensorboardX without torch: its actor starts on a third of the CPU. What the driver
+    packs, the run directory holds as torch would have written it."""
+    import subprocess
+    import sys
+
+    import torch
+
+    script = (
+        "import sys, pathlib; import hola_ray.population.coordinator as c; "
+        f"c.summary_writer(pathlib.Path({str(tmp_path / 'tb')!r})).add_scalar('x', 1.0, 0); "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'torch'))"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "[]"
+    assert list((tmp_path / "tb").glob("events.out.tfevents.*"))
+    run = RunDir(tmp_path / "run")
+    run.members.mkdir(parents=True)
+    export, state = {"w": torch.arange(3.0)}, {"w": np.arange(4, dtype=np.float32)}
+    run.save_member(5, TorchFile.of(export), TorchFile.of(state))
+    assert (run.load_member_export(5)["w"] == export["w"]).all()
+    assert (run.load_member_state(5)["w"] == state["w"]).all()
+    assert TorchFile.read(run.member_state(5)).load().keys() == {"w"}
 
 
 def test_candidate_edges_sample_distinct_sets_reproducibly():
@@ -196,6 +233,10 @@ def test_a_run_directory_file_that_would_run_code_is_refused(tmp_path):
         run.load_member_state(1)
     said = str(err.value)
     assert "\n" not in said and str(run.member_state(1)) in said and "posix.system" in said
+    assert not witness.exists()
+    # the same bytes from the coordinator are refused alike
+    with pytest.raises(UnsafeFile, match="posix.system"):
+        TorchFile.read(run.member_state(1)).load()
     assert not witness.exists()
 
 
