@@ -128,6 +128,22 @@ def test_each_trial_is_the_base_with_the_experiment_and_method_overrides(tmp_pat
     assert deep_merge({"a": {"b": 1, "c": 2}}, {"a": {"b": 3}}) == {"a": {"b": 3, "c": 2}}
 
 
+def test_a_pilot_is_trained_only(tmp_path):
+    """`evaluation: none`: trials and nothing else (a pilot sizes a design on the validation
+    teammates and never plays a pool); the differences reported are still hola's."""
+    path = tmp_path / "pilot.yaml"
+    raw = {"base": str(ROOT / "configs" / "smoke.yaml"), "methods": ["hola", "uniform"]}
+    path.write_text(yaml.safe_dump(raw | {"seeds": [0, 1], "evaluation": "none"}))
+    exp = Experiment.from_yaml(path)
+    assert exp.evaluation is None and exp.pairs() == [("hola", "uniform")]
+    assert exp.trials() == ["hola-s0", "hola-s1", "uniform-s0", "uniform-s1"]
+    pilot = Experiment.from_yaml(ROOT / "configs" / "experiments" / "pilot-3v2.yaml")
+    assert pilot.evaluation is None and len(pilot.seeds) == 4
+    config = pilot.run_config("uniform-s3")
+    assert (config.env.n_evaders, config.pretrain.learner_start) == (2, "random")
+    assert config.grapher.edges_per_learner == 3
+
+
 @pytest.mark.parametrize(
     ("patch", "message"),
     [

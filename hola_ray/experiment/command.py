@@ -61,7 +61,9 @@ def main(argv: list[str] | None = None) -> int:
             "methods": experiment.methods,
             "seeds": list(experiment.seeds),
             "parallel": experiment.parallel,
-            "evaluation": {
+            "evaluation": "none"
+            if experiment.evaluation is None
+            else {
                 k: [list(x) if isinstance(x, tuple) else x for x in v]
                 if isinstance(v, tuple)
                 else v

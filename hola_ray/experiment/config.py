@@ -49,7 +49,9 @@ class Experiment:
     seeds: tuple[int, ...]
     overrides: dict[str, Any] = field(default_factory=dict)
     parallel: int = 0
-    evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
+    evaluation: EvaluationSettings | None = field(default_factory=EvaluationSettings)
+    """None (`evaluation: none`): trials are trained and nothing else, a pilot that sizes a
+    design on the validation teammates and never plays a pool"""
     source: Path | None = None
 
     @classmethod
@@ -136,7 +138,8 @@ class Experiment:
         methods = list(self.methods)
         first = "hola" if "hola" in methods else methods[0]
         out = [(first, m) for m in methods if m != first]
-        return out + [p for p in self.evaluation.pairs if p not in out]
+        more = self.evaluation.pairs if self.evaluation is not None else ()
+        return out + [p for p in more if p not in out]
 
     def trials(self) -> list[str]:
         """Trial names, method by method: `<method>-s<seed>`."""
@@ -150,12 +153,14 @@ class Experiment:
         return RunConfig.from_dict(merged)
 
 
-def _evaluation(raw: Any, methods: set[str]) -> EvaluationSettings:
-    """The `evaluation` section, checked field by field."""
+def _evaluation(raw: Any, methods: set[str]) -> EvaluationSettings | None:
+    """The `evaluation` section, checked field by field; `none`: no evaluation."""
     if raw is None:
         return EvaluationSettings()
+    if raw == "none":
+        return None
     if not isinstance(raw, Mapping):
-        raise ConfigError(f"evaluation must be a mapping, got {raw!r}", "evaluation")
+        raise ConfigError(f"evaluation must be a mapping or none, got {raw!r}", "evaluation")
     settings = EvaluationSettings(**consume_fields(EvaluationSettings, raw, "evaluation."))
     positive_int("evaluation", settings, "episodes", "cell_episodes", maximum=10**6)
     ok = len(settings.seeds) > 0 and min(settings.seeds) >= 0

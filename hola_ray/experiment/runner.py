@@ -442,6 +442,12 @@ class Runner:
 
     def run(self) -> dict[str, Any]:
         self.train()
+        if self.exp.evaluation is None:
+            self.say(
+                f"trained; no evaluation (evaluation: none): the trials are in {self.out}/"
+                "trials, their validation curves in each metrics.csv"
+            )
+            return {}
         per_trial = self.evaluate()
         results = self.write_results(per_trial)
         self.say(f"wrote {self.out / 'results.json'}, results.md and figure.png")
