@@ -29,9 +29,10 @@ from hola_ray.methods.monitors import Monitoring, monitored, validation_teammate
 from hola_ray.oracle import LEARNER, Oracle
 from hola_ray.population.coordinator import opened, run_id, start_coordinator
 from hola_ray.population.evaluators import EvaluatorPool
+from hola_ray.population.files import TorchFile
 from hola_ray.population.grapher import edge_summary, weigh
 from hola_ray.population.lock import RunLock
-from hola_ray.population.rundir import RunDir, TorchFile, phi_tie
+from hola_ray.population.rundir import RunDir, phi_tie
 from hola_ray.population.state import EdgeResult, edge_seed
 
 

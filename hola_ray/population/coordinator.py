@@ -19,8 +19,9 @@ import numpy as np
 import ray
 
 from hola_ray.population.config import PopulationConfig
+from hola_ray.population.files import TorchFile
 from hola_ray.population.rules import Rules
-from hola_ray.population.rundir import RunDir, TorchFile
+from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import Decision, EdgeResult, Population
 
 

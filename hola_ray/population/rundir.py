@@ -41,19 +41,25 @@ in between gets them again from the generation folders when it is resumed
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import os
-import pickle
 import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any
 
 import numpy as np
 
 from hola_ray.homes import GENERATION_EXPORT, GENERATION_STATE
+from hola_ray.population.files import (
+    Saved,
+    atomic_torch_save,
+    atomic_write_text,
+    fsync_dir,
+    load_state,
+    torch_save,
+    write_csv,
+)
 
 GENERATION_TRAINING = "learner.training.pt"
 """in a generation folder: the learner's optimizer state and schedule position"""
@@ -116,7 +122,7 @@ class RunDir:
     def create(self, config_yaml: str) -> None:
         self.members.mkdir(parents=True, exist_ok=True)
         self.generations.mkdir(parents=True, exist_ok=True)
-        _atomic_write_text(self.config, config_yaml)
+        atomic_write_text(self.config, config_yaml)
 
     # ---- members ------------------------------------------------------------------------
     def member_export(self, node: int) -> Path:
@@ -126,8 +132,8 @@ class RunDir:
         return self.members / f"node_{node:04d}.rllib.pt"
 
     def save_member(self, node: int, export: Saved, state: Saved) -> None:
-        _atomic_torch_save(export, self.member_export(node))
-        _atomic_torch_save(state, self.member_state(node))
+        atomic_torch_save(export, self.member_export(node))
+        atomic_torch_save(state, self.member_state(node))
 
     def load_member_state(self, node: int) -> dict[str, Any]:
         return load_state(self.member_state(node))
@@ -158,7 +164,7 @@ class RunDir:
         shutil.rmtree(old, ignore_errors=True)
 
     def save_learner_info(self, info: Mapping[str, Any]) -> None:
-        _atomic_write_text(self.root / "learner.json", json.dumps(dict(info), indent=1))
+        atomic_write_text(self.root / "learner.json", json.dumps(dict(info), indent=1))
 
     def finished(self, generations: int) -> bool:
         """Every generation up to `generations` is complete, and so are the files at the
@@ -180,7 +186,7 @@ class RunDir:
 
     def save_learner(self, export: Mapping[str, Any]) -> None:
         """The latest learner as a plain-torch export (`MLPPolicy.load(config, path)`)."""
-        _atomic_torch_save(export, self.learner)
+        atomic_torch_save(export, self.learner)
 
     def save_latest(
         self, g: int, method: str, export: Mapping[str, Any], decision: Mapping | None
@@ -229,8 +235,8 @@ class RunDir:
         }
         if validated:
             info |= {k: float(row[k]) for k in ("val_success", "val_collision")}
-        _atomic_torch_save(export, self.best)
-        _atomic_write_text(self.best_info, json.dumps(info, indent=1))
+        atomic_torch_save(export, self.best)
+        atomic_write_text(self.best_info, json.dumps(info, indent=1))
         return True
 
     def best_of_completed(self) -> int | None:
@@ -293,10 +299,10 @@ class RunDir:
             (learner_training, GENERATION_TRAINING),
         ):
             if saved is not None:
-                _torch_save(saved, tmp / name)
-        _fsync_dir(tmp)
+                torch_save(saved, tmp / name)
+        fsync_dir(tmp)
         os.rename(tmp, final)
-        _fsync_dir(self.generations)
+        fsync_dir(self.generations)
         return final
 
     def adopt_generation_zero(self, donor: RunDir) -> None:
@@ -315,9 +321,9 @@ class RunDir:
         metrics = json.loads((tmp / "metrics.json").read_text())
         metrics["adopted_from"] = donor.root.name
         (tmp / "metrics.json").write_text(json.dumps(metrics, indent=1))
-        _fsync_dir(tmp)
+        fsync_dir(tmp)
         os.rename(tmp, self.generation(0))
-        _fsync_dir(self.generations)
+        fsync_dir(self.generations)
         self.rewrite_metrics_csv()
 
     def read_json(self, g: int, name: str) -> Any:
@@ -341,7 +347,7 @@ class RunDir:
     def complete(self, g: int, figures: Mapping[str, Any]) -> None:
         """Write generation g's monitored figures beside its metrics (atomically: the
         generation is monitored or not), then metrics.csv again."""
-        _atomic_write_text(self.generation(g) / MONITORS, json.dumps(dict(figures), indent=1))
+        atomic_write_text(self.generation(g) / MONITORS, json.dumps(dict(figures), indent=1))
         self.rewrite_metrics_csv()
 
     def load_learner_state(self, g: int) -> dict[str, Any] | None:
@@ -371,7 +377,7 @@ class RunDir:
             tmp = self.pretrain / f".tmp_{mid}.npz"
             np.savez(tmp, **{k: np.asarray(v) for k, v in state.items()})
             os.replace(tmp, self.pretrain / f"{mid}.npz")
-        _atomic_write_text(self.pretrain / "progress.json", json.dumps(dict(progress), indent=1))
+        atomic_write_text(self.pretrain / "progress.json", json.dumps(dict(progress), indent=1))
 
     def load_pretrain(self) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, Any]] | None:
         """The last pre-training checkpoint (`save_pretrain`), or None."""
@@ -415,8 +421,8 @@ class RunDir:
     def rewrite_metrics_csv(self) -> None:
         """metrics.csv and iterations.csv from the completed generations' folders (never a
         lost or doubled row, whatever was killed when)."""
-        _write_csv(self.metrics_csv, self.metrics_rows())
-        _write_csv(self.iterations_csv, self.iteration_rows())
+        write_csv(self.metrics_csv, self.metrics_rows())
+        write_csv(self.iterations_csv, self.iteration_rows())
 
 
 def generation_wall_s(row: dict[str, Any]) -> float:
@@ -427,113 +433,6 @@ def generation_wall_s(row: dict[str, Any]) -> float:
         return float(row["wall_s"])
     phases = ("pretrain_s", "oracle_s", "grapher_s", "eval_s", "coordinator_s")
     return sum(float(row.get(k) or 0.0) for k in phases)
-
-
-def _write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
-    if not rows:
-        return
-    columns: list[str] = ["generation"]
-    for row in rows:
-        columns += [k for k in row if k not in columns]
-    tmp = path.with_suffix(".csv.tmp")
-    with tmp.open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=columns)
-        writer.writeheader()
-        writer.writerows(rows)
-    os.replace(tmp, path)
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
-class UnsafeFile(ValueError):
-    """A run-directory file that holds more than tensors, arrays and plain data."""
-
-
-_ARRAY_GLOBALS = [
-    getattr(np, "_core", getattr(np, "core", None)).multiarray._reconstruct,
-    np.ndarray,
-    np.dtype,
-    *(type(np.dtype(t)) for t in ("float32", "float64", "int32", "int64", "bool")),
-]
-"""what pickling a numpy array names: its reconstructor, its type and its dtype"""
-
-
-def load_state(path: Path | BinaryIO, name: str | None = None) -> dict[str, Any]:
-    """A torch file (an RLlib module state, name → numpy array, or a plain-torch export)
-    read with `weights_only=True`: tensors, plain data and numpy arrays (allowed by name),
-    nothing else unpickled, so a run directory copied from elsewhere cannot run code on
-    `--resume`. A file that would (any other global) is refused in one line naming it
-    (`name`, else the path)."""
-    import torch
-
-    try:
-        with torch.serialization.safe_globals(_ARRAY_GLOBALS):
-            return torch.load(path, map_location="cpu", weights_only=True)
-    except pickle.UnpicklingError as err:
-        lines = [x.strip() for x in str(err).splitlines() if x.strip()]
-        said = next((x for x in lines if "GLOBAL" in x or "Unsupported" in x), lines[-1])
-        raise UnsafeFile(
-            f"{name or path}: refused, it holds more than tensors, arrays and plain data ({said})"
-        ) from None
-
-
-class TorchFile:
-    """A torch file as bytes: made (`of`) and opened (`load`) where torch is loaded, written
-    and read as it is by the coordinator, which so never imports torch (about 2 s of CPU at
-    every run's start, most of an idle coordinator's)."""
-
-    __slots__ = ("data",)
-
-    def __init__(self, data: bytes):
-        self.data = data
-
-    @classmethod
-    def of(cls, obj: Mapping[str, Any]) -> TorchFile:
-        """What `torch.save(dict(obj), path)` would write."""
-        import torch
-
-        buffer = io.BytesIO()
-        torch.save(dict(obj), buffer)
-        return cls(buffer.getvalue())
-
-    @classmethod
-    def read(cls, path: Path) -> TorchFile:
-        return cls(path.read_bytes())
-
-    def load(self) -> dict[str, Any]:
-        """Its contents, as `load_state` reads a file."""
-        return load_state(io.BytesIO(self.data), name="a torch file from the coordinator")
-
-
-Saved = Mapping[str, Any] | TorchFile
-"""what RunDir writes as a torch file: a mapping (saved here with torch) or its bytes"""
-
-
-def _torch_save(obj: Saved, path: Path) -> None:
-    if isinstance(obj, TorchFile):
-        path.write_bytes(obj.data)
-    else:
-        import torch
-
-        torch.save(dict(obj), path)
-
-
-def _atomic_torch_save(obj: Saved, path: Path) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    _torch_save(obj, tmp)
-    os.replace(tmp, path)
-
-
-def _fsync_dir(path: Path) -> None:
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
 
 
 def metrics_differences(a: str | Path, b: str | Path) -> dict[int, dict[str, tuple]]:

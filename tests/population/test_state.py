@@ -9,7 +9,8 @@ import pytest
 
 from hola_ray.methods.hola import InverseValue
 from hola_ray.population.coordinator import total_variation
-from hola_ray.population.rundir import RunDir, TorchFile, phi_departure, phi_tie
+from hola_ray.population.files import TorchFile
+from hola_ray.population.rundir import RunDir, phi_departure, phi_tie
 from hola_ray.population.state import EdgeResult, Population, edge_seed
 
 
@@ -213,7 +214,7 @@ def test_a_run_directory_file_that_would_run_code_is_refused(tmp_path):
 
     import torch
 
-    from hola_ray.population.rundir import UnsafeFile
+    from hola_ray.population.files import UnsafeFile
 
     run = RunDir(tmp_path / "run")
     run.members.mkdir(parents=True)
