@@ -87,3 +87,6 @@ def test_a_population_name_takes_the_runs_seed_and_its_methods_kind(tmp_path, mo
     assert shipped.population_dir("{kind}-3v1-s{seed}", 1, "mep") == tmp_path / "mep-3v1-s1"
     with pytest.raises(shipped.PopulationError, match="no shipped population 'pbt-3v1-s1'"):
         shipped.population_dir("{kind}-3v1-s{seed}", 1, "pbt")
+    # N builds shared by the seeds: seed 4 sits on build 4 mod 3
+    assert shipped.population_dir("{kind}-3v1-s{seed%3}", 4, "mep") == tmp_path / "mep-3v1-s1"
+    assert shipped.population_dir("mep-3v1-s{seed%3}", 1) == tmp_path / "mep-3v1-s1"

@@ -86,9 +86,10 @@ class PretrainConfig:
     """environment steps between checks"""
     population: str = "none"
     """a shipped population (pools/populations/<name>, or a folder with its manifest) taken
-    as generation 0 instead of pre-training; `{seed}` in the name is the run's seed and
-    `{kind}` the kind of population its method builds (`mep-3v1-s{seed}`,
-    `{kind}-3v1-s{seed}`; `hola_ray.population.shipped`); none: pre-train. A method
+    as generation 0 instead of pre-training; `{seed}` in the name is the run's seed
+    (`{seed%N}` modulo N) and `{kind}` the kind of population its method builds
+    (`mep-3v1-s{seed}`, `{kind}-3v2-s{seed%3}`; `hola_ray.population.shipped`); none:
+    pre-train. A method
     without a population (self-play) takes only its learner's start from it
     (`learner_start: member`)"""
     learner_start: str = "random"

@@ -20,6 +20,7 @@ Building it is `python -m hola_ray.populations` (`hola_ray/populations.py`).
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from collections.abc import Mapping
 from pathlib import Path
@@ -44,12 +45,14 @@ def population_dir(
     population: str | Path, seed: int | None = None, kind: str | None = None
 ) -> Path:
     """A shipped population's folder: a name under pools/populations/ or a folder holding
-    a manifest; `{seed}` in the name is the run's seed (one population per seed) and
-    `{kind}` the kind its method builds (mep, fcp, pbt: one experiment seats each method on
-    its own kind of population)."""
+    a manifest; `{seed}` in the name is the run's seed (one population per seed),
+    `{seed%N}` the seed modulo N (N builds shared by the seeds: seeds 0 and 3 on build 0
+    when N is 3) and `{kind}` the kind its method builds (mep, fcp, pbt: one experiment
+    seats each method on its own kind of population)."""
     text = str(population)
-    if seed is not None and "{seed}" in text:
+    if seed is not None:
         text = text.replace("{seed}", str(seed))
+        text = re.sub(r"\{seed%(\d+)\}", lambda m: str(seed % int(m[1])), text)
     if kind is not None and "{kind}" in text:
         text = text.replace("{kind}", kind)
     for folder in (POPULATIONS_DIR / text, Path(text)):
