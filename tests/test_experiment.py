@@ -274,3 +274,46 @@ def test_a_pool_named_by_its_folder_is_the_same_pool():
     settings = {"cell_episodes": 1, "seeds": [0]}
     by_folder = _reference(str(ROOT / "pools" / "hot"), settings, 2)
     np.testing.assert_array_equal(by_folder, _reference("hot", settings, 2))
+
+
+def test_finished_trials_are_published_and_committed_one_by_one(tmp_path):
+    """`python -m hola_ray.experiment.publish RUN DOCS --commit`: each done trial's config,
+    metrics, best.pt and best.json copied and committed once; running trials wait; the
+    results follow once written."""
+    import subprocess
+
+    from hola_ray.experiment import publish
+
+    run, repo = tmp_path / "run", tmp_path / "repo"
+    subprocess.run(["git", "init", "-q", str(repo)], check=True)
+    for key, value in (("user.email", "t@t"), ("user.name", "t")):
+        subprocess.run(["git", "-C", str(repo), "config", key, value], check=True)
+    docs = repo / "docs" / "exp"
+    (run / "trials").mkdir(parents=True)
+    (run / "experiment.yaml").write_text("seeds: [0]\n")
+    for t in ("hola-s0", "sp-s0"):
+        (run / "trials" / t).mkdir()
+        for name in ("config.yaml", "metrics.csv", "best.json", "best.pt", "learner.json"):
+            (run / "trials" / t / name).write_text(f"{t} {name}")
+        (run / "trials" / t / "members").mkdir()  # never copied
+    progress = {"hola-s0": {"status": "done"}, "sp-s0": {"status": "running"}}
+    (run / "progress.json").write_text(json.dumps(progress))
+
+    def log() -> list[str]:
+        out = subprocess.run(["git", "-C", str(repo), "log", "--format=%s"], capture_output=True)
+        return out.stdout.decode().splitlines()
+
+    assert publish.main([str(run), str(docs), "--commit"]) == 0
+    assert (docs / "trials" / "hola-s0" / "best.pt").read_text() == "hola-s0 best.pt"
+    assert (
+        not (docs / "trials" / "sp-s0").exists() and not (docs / "trials/hola-s0/members").exists()
+    )
+    assert log() == ["exp: hola-s0 published (hola_ray.experiment.publish)"]
+    assert publish.main([str(run), str(docs), "--commit"]) == 0  # nothing new: no commit
+    assert len(log()) == 1
+    progress["sp-s0"]["status"] = "done"
+    (run / "progress.json").write_text(json.dumps(progress))
+    (run / "results.json").write_text("{}")
+    assert publish.main([str(run), str(docs), "--commit", "--watch", "0.01"]) == 0
+    assert log()[0] == "exp: sp-s0, results published (hola_ray.experiment.publish)"
+    assert (docs / "results.json").read_text() == "{}"

@@ -1,0 +1,112 @@
+"""Publish an experiment as it goes: each finished trial's figures and chosen learner, then
+the results, copied into a folder of the repository and committed there.
+
+    python -m hola_ray.experiment.publish RUN_DIR DOCS_DIR [--commit] [--watch SECONDS]
+
+A trial is copied once `progress.json` says it is done: its `config.yaml` (which names its
+population build), `metrics.csv`, `best.json`, `best.pt` (about 26 kB: anyone can play the
+compared learner) and `learner.json`; then, once written, the experiment's `experiment.yaml`,
+`results.json`, `results.md` and `figure.png`. `--commit` commits each new trial on its own
+(`git commit` in the repository that holds DOCS_DIR), so a machine replaced mid-experiment
+loses at most the trials in progress; `--watch` polls until the results are written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+TRIAL_FILES = ("config.yaml", "metrics.csv", "best.json", "best.pt", "learner.json")
+RESULT_FILES = ("experiment.yaml", "results.json", "results.md", "figure.png")
+
+
+def done_trials(run: Path) -> list[str]:
+    path = run / "progress.json"
+    if not path.is_file():
+        return []
+    rows = json.loads(path.read_text())
+    return sorted(t for t, row in rows.items() if row.get("status") == "done")
+
+
+def finished(run: Path, docs: Path) -> bool:
+    """Nothing more to come: the results are published, or for an experiment without an
+    evaluation (a pilot) every trial is done."""
+    import yaml
+
+    if (docs / "results.json").is_file():
+        return True
+    rows = (
+        json.loads((run / "progress.json").read_text()) if (run / "progress.json").is_file() else {}
+    )
+    pilot = yaml.safe_load((run / "experiment.yaml").read_text()).get("evaluation") == "none"
+    return pilot and bool(rows) and len(done_trials(run)) == len(rows)
+
+
+def publish(run: Path, docs: Path) -> list[str]:
+    """Copy what is new: the trials done since the last call, and the results once they
+    are complete. Returns what was copied (trial names, `results`)."""
+    copied = []
+    if not (docs / "experiment.yaml").is_file():
+        shutil.copyfile(run / "experiment.yaml", docs / "experiment.yaml")
+    for trial in done_trials(run):
+        target = docs / "trials" / trial
+        if (target / "best.pt").is_file():
+            continue
+        target.mkdir(parents=True, exist_ok=True)
+        for name in TRIAL_FILES:
+            source = run / "trials" / trial / name
+            if source.is_file():
+                shutil.copyfile(source, target / name)
+        copied.append(trial)
+    results = run / "results.json"
+    if results.is_file() and (
+        not (docs / "results.json").is_file()
+        or (docs / "results.json").read_bytes() != results.read_bytes()
+    ):
+        for name in RESULT_FILES:
+            if (run / name).is_file():
+                shutil.copyfile(run / name, docs / name)
+        copied.append("results")
+    return copied
+
+
+def commit(docs: Path, what: list[str]) -> bool:
+    """`git add DOCS && git commit` in DOCS's repository; False when git refused (another
+    commit in progress: the next poll tries again)."""
+    git = ["git", "-C", str(docs)]
+    add = subprocess.run([*git, "add", "."], capture_output=True, text=True)
+    message = f"{docs.name}: {', '.join(what)} published (hola_ray.experiment.publish)"
+    done = subprocess.run([*git, "commit", "-q", "-m", message, "--", "."], capture_output=True)
+    return add.returncode == 0 and done.returncode == 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m hola_ray.experiment.publish", description=__doc__.split("\n\n")[0]
+    )
+    parser.add_argument("run", type=Path, help="the experiment directory")
+    parser.add_argument("docs", type=Path, help="where in the repository to copy it")
+    parser.add_argument("--commit", action="store_true", help="commit each new trial")
+    parser.add_argument("--watch", type=float, metavar="SECONDS", help="poll until results")
+    args = parser.parse_args(argv)
+    if not (args.run / "experiment.yaml").is_file():
+        parser.error(f"{args.run} holds no experiment.yaml")
+    args.docs.mkdir(parents=True, exist_ok=True)
+    pending: list[str] = []
+    while True:
+        pending += publish(args.run, args.docs)
+        if pending:
+            print(f"published {', '.join(pending)} in {args.docs}", flush=True)
+            if not args.commit or commit(args.docs, pending):
+                pending = []
+        if args.watch is None or finished(args.run, args.docs) and not pending:
+            return 0
+        time.sleep(args.watch)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
