@@ -103,7 +103,7 @@ def summarise(
         methods[method] = {
             "seeds": sorted(seeds),
             "generations": max(p[-1][0] for p in seeds.values()),
-            "slope_per_generation": {
+            "slope_by_seed": {
                 str(s): {"slope": v[0], "se": v[1]} for s, v in per_seed.items()
             },
             "slope": t_interval(slopes),
@@ -171,6 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     result |= summarise(found, args.a, args.b, args.half_width)
     out = args.out or args.experiment
     out.mkdir(parents=True, exist_ok=True)
+    result = json.loads(json.dumps(result).replace("NaN", "null"))  # strict JSON
     (out / "movement.json").write_text(json.dumps(result, indent=1))
     plot(found, args.key, out / "movement.png")
     print(json.dumps(result))
