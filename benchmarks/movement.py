@@ -103,9 +103,7 @@ def summarise(
         methods[method] = {
             "seeds": sorted(seeds),
             "generations": max(p[-1][0] for p in seeds.values()),
-            "slope_by_seed": {
-                str(s): {"slope": v[0], "se": v[1]} for s, v in per_seed.items()
-            },
+            "slope_by_seed": {str(s): {"slope": v[0], "se": v[1]} for s, v in per_seed.items()},
             "slope": t_interval(slopes),
             "first": t_interval(first),
             "last": t_interval(last),

@@ -22,7 +22,6 @@ import time
 import ray
 
 from hola_ray.methods.config import SAMPLERS, RunConfig
-from hola_ray.methods.trainer import make_oracle
 from hola_ray.run import DEFAULT
 
 
@@ -68,7 +67,7 @@ def main() -> None:
         config = dataclasses.replace(
             default, oracle=dataclasses.replace(default.oracle, sampler=sampler)
         )
-        oracle = make_oracle(config)
+        oracle = config.strategy.make_oracle(config)
         try:
             oracle.train(config.oracle.train_batch, progress=False)  # compile, warm up
             (result,) = oracle.algo.env_runner_group.foreach_env_runner(

@@ -32,7 +32,6 @@ import ray
 import torch
 
 from hola_ray.methods.config import SAMPLERS, RunConfig
-from hola_ray.methods.trainer import make_oracle
 from hola_ray.policies.learned import FORMAT
 from hola_ray.population.evaluators import EvaluatorPool
 from hola_ray.population.grapher import evaluate_edges
@@ -130,7 +129,7 @@ def grapher_speed(config: RunConfig, members: int, episodes: int, rounds: int) -
 def oracle_speed(config: RunConfig, label: str, steps: int, sampler: str) -> dict[str, float]:
     config = dataclasses.replace(config, oracle=dataclasses.replace(config.oracle, sampler=sampler))
     label = f"{label}_{sampler}"
-    oracle = make_oracle(config)
+    oracle = config.strategy.make_oracle(config)
     try:
         oracle.train(config.oracle.train_batch, progress=False)  # warm-up iteration
         s = oracle.train(steps, progress=False)

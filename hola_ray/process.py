@@ -54,16 +54,24 @@ def init_ray(
     namespace: str,
     num_cpus: int | None = None,
     dashboard: bool = False,
+    metrics_port: int | None = None,
 ) -> str | None:
     """Join the cluster RAY_ADDRESS names, else start a local Ray with `num_cpus` CPUs (all
-    when None) and the dashboard if asked; every worker as `init_local_ray` sets it up.
-    The dashboard's URL, when there is one."""
+    when None), the dashboard if asked and its metrics served as Prometheus text on
+    `metrics_port` if given; every worker as `init_local_ray` sets it up. The dashboard's
+    URL, when there is one."""
     import os
 
     import ray
 
     quiet_ray_noise()
     if os.environ.get("RAY_ADDRESS"):
+        if metrics_port is not None:
+            print(
+                "note: --metrics-port applies to a local Ray; the cluster's nodes serve "
+                "their metrics on their own port (cluster/README.md, Metrics)",
+                flush=True,
+            )
         ctx = ray.init(namespace=namespace, runtime_env=RAY_RUNTIME_ENV)
     else:
         ctx = ray.init(
@@ -72,6 +80,7 @@ def init_ray(
             num_cpus=num_cpus,
             include_dashboard=dashboard,
             runtime_env=worker_runtime_env(),
+            _metrics_export_port=metrics_port,
         )
     url = getattr(ctx, "dashboard_url", None)
     return f"http://{url}" if url else None

@@ -84,6 +84,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         help="override one config value, read as YAML (repeatable): --set oracle.lr=1e-4 "
         "--set env.reward.approach=distance --set method=sp",
     )
+    parser.add_argument(
+        "--metrics-port",
+        type=int,
+        metavar="PORT",
+        help="serve the run's figures (hola_ray_*) and Ray's as Prometheus text on "
+        "127.0.0.1:PORT/metrics (a local Ray; a cluster's port is its own)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     return parser.parse_args(argv)
 
@@ -185,7 +192,7 @@ def init_ray(args: argparse.Namespace) -> None:
     from hola_ray.process import NAMESPACE
     from hola_ray.process import init_ray as start
 
-    url = start(NAMESPACE, args.num_cpus, dashboard=not args.no_dashboard)
+    url = start(NAMESPACE, args.num_cpus, not args.no_dashboard, args.metrics_port)
     if url:
         print(f"Ray dashboard: {url}", flush=True)
 

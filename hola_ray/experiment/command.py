@@ -24,6 +24,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="experiment directory (default runs/<name>-…)")
     parser.add_argument("--resume", type=Path, metavar="DIR", help="continue an experiment")
     parser.add_argument("--num-cpus", type=int, help="CPUs of the local Ray (default: all)")
+    parser.add_argument(
+        "--metrics-port",
+        type=int,
+        metavar="PORT",
+        help="serve the trials' figures (hola_ray_*) and Ray's as Prometheus text on "
+        "127.0.0.1:PORT/metrics (a local Ray; a cluster's port is its own)",
+    )
     args = parser.parse_args(argv)
     # imported here, not above: `script` re-runs the command under the fixed hash seed
     # before torch, Ray and RLlib (which the experiment's methods import) load
@@ -73,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         (out / CONFIG_NAME).write_text(yaml.safe_dump(saved, sort_keys=False))
     from hola_ray.process import NAMESPACE, init_ray
 
-    init_ray(NAMESPACE, args.num_cpus)
+    init_ray(NAMESPACE, args.num_cpus, metrics_port=args.metrics_port)
     trials = experiment.trials()
     print(
         f"experiment in {out}: {len(experiment.methods)} method(s) × {len(experiment.seeds)} "

@@ -69,11 +69,12 @@ def _run_trial(
     # a trial must train as `python -m hola_ray.run` of its config does (a test compares
     # them); pinned to its one CPU it read returns 1e-8 apart.
     root, run_config = Path(run_dir), RunConfig.from_dict(config)
+    tags = {"run": root.parent.parent.name, "trial": root.name}  # DIR/trials/<trial>
     if mirror is None:
         mirror = not sees(root, token)
     if not mirror:
         donors = tuple(Path(d) for d in adopt_from)
-        Trainer(run_config, root, progress=False, adopt_from=donors).fit()
+        Trainer(run_config, root, progress=False, adopt_from=donors, tags=tags).fit()
         return "in place"
     staging = Path(tempfile.gettempdir()) / "hola_ray-trials" / str(token) / root.name
     if seed is not None:
@@ -86,7 +87,7 @@ def _run_trial(
     if seed is not None:
         sync.mark_seen()  # the driver has all of it already
     try:
-        Trainer(run_config, staging, progress=False, saved=sync).fit()
+        Trainer(run_config, staging, progress=False, saved=sync, tags=tags).fit()
         sync()
     finally:
         ray.kill(actor)

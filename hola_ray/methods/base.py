@@ -116,6 +116,12 @@ class Method:
             return Seating()
         return Seating(partners=config.population.max_size)
 
+    def make_oracle(self, config: RunConfig, seed: int | None = None) -> Oracle:
+        """The Oracle a run of `config` trains its learner with, seated as this method
+        says (`seed`: the run's unless given)."""
+        seed = config.seed if seed is None else seed
+        return Oracle(config.env, config.oracle, self.seating(config), seed)
+
     def population_size(self, config: RunConfig) -> int:
         """How many members `build_population` builds."""
         return config.population.initial_size

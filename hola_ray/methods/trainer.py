@@ -49,15 +49,16 @@ class Trainer:
     """called with g once generation g (and the files at the top) is on disk; and after a
     resume has written those files again (the experiment mirrors a trial's folder with it)"""
     adopt_from: tuple[Path, ...] = ()
-    """run directories whose generation 0 a fresh run takes instead of pre-training, when
-    one of them built it with the same `generation_zero_key` (an experiment's methods of
-    one seed that share MEP's population: the same G_0, trained once)"""
+    """run directories whose generation 0 (same `generation_zero_key`: an experiment's
+    methods of one seed on MEP's population) a fresh run takes instead of pre-training"""
     started: float | None = None
     """when the command began (`time.perf_counter()`): the first row this process writes
     counts its start from there (`hola_ray.clock`); None: from `fit`"""
     zero: GenerationZero | None = None
     """where generation 0 comes from and where the learner starts, resolved before Ray
     started (`generation_zero.resolve`); None: resolved by `fit`"""
+    tags: dict[str, str] | None = None
+    """the run's metrics' tags, run and trial (`hola_ray.population.telemetry`)"""
 
     def __post_init__(self) -> None:
         self.run = RunDir(self.run_dir)
@@ -107,6 +108,7 @@ class Trainer:
             c.grapher.edges_per_learner,
             c.method,
             method.rival(c),
+            self.tags,
         )
         with clock.phase("actors"):
             self.pool.start()  # they start while this driver goes on
@@ -123,7 +125,7 @@ class Trainer:
                 # generation 0 trains nothing (a shipped population weighed again): the
                 # Oracle is built while the coordinator and evaluation actors start
                 with clock.phase("oracle_build"):
-                    oracle = make_oracle(c)
+                    oracle = method.make_oracle(c)
             if last is None and method.self_play:
                 last = 0  # no population to pre-train: generation 1 is the first
             elif last is None:
@@ -141,7 +143,7 @@ class Trainer:
             if last < self.config.generations:
                 if oracle is None:
                     with clock.phase("oracle_build"):
-                        oracle = make_oracle(c)
+                        oracle = method.make_oracle(c)
                 with clock.phase("seat"):
                     learner = self.run.load_learner_state(last)
                     if learner is None and last == 0:
@@ -392,9 +394,3 @@ class Trainer:
     def member_states(self, nodes: list[int]) -> dict[int, dict[str, Any]]:
         """The RLlib module states of members, to seat them as partners or train on."""
         return opened(self.coord.member_states.remote(nodes))
-
-
-def make_oracle(config: RunConfig, seed: int | None = None) -> Oracle:
-    """The Oracle a run of `config` trains its learner with, seated as its method says."""
-    seating = config.strategy.seating(config)
-    return Oracle(config.env, config.oracle, seating, config.seed if seed is None else seed)

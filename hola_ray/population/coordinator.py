@@ -9,7 +9,6 @@ does the I/O.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -23,6 +22,7 @@ from hola_ray.population.files import TorchFile
 from hola_ray.population.rules import Rules
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import Decision, EdgeResult, Population
+from hola_ray.population.telemetry import Telemetry
 
 
 def run_id(run_dir: str) -> str:
@@ -50,24 +50,6 @@ def total_variation(p: Mapping[int, float], q: Mapping[int, float]) -> float:
     return 0.5 * sum(abs(p.get(v, 0.0) - q.get(v, 0.0)) for v in set(p) | set(q))
 
 
-def summary_writer(folder: Path) -> Any:
-    """tensorboardX's writer, imported without torch unless this process has it:
-    tensorboardX imports torch where it can only to tell a tensor from an array
-    (tensorboardX/writer.py), and the coordinator writes floats. Its process so never
-    loads torch (`TorchFile`)."""
-    import sys
-
-    hidden = "torch" not in sys.modules
-    if hidden:
-        sys.modules["torch"] = None  # type: ignore[assignment]  # `import torch` fails
-    try:
-        from tensorboardX import SummaryWriter
-    finally:
-        if hidden:
-            del sys.modules["torch"]
-    return SummaryWriter(str(folder))
-
-
 @ray.remote(num_cpus=0, max_restarts=0)
 class Coordinator:
     """Owns `Population` and the run directory; one per run, named `coordinator:<run>`."""
@@ -82,9 +64,8 @@ class Coordinator:
         edges_per_learner: int = 0,
         method: str = "",
         rival: Rules | None = None,
+        tags: Mapping[str, str] | None = None,
     ):
-        from ray.util.metrics import Gauge
-
         self.rules, self.seed, self.method = rules, seed, method
         self.edges_per_learner = edges_per_learner
         self.rival = rival
@@ -104,15 +85,31 @@ class Coordinator:
         self.phase = "idle"
         self._edges: list[EdgeResult] = []
         self._pending: dict[int, tuple[TorchFile, TorchFile]] = {}  # node → export, state
-        tags = ("run",)
-        self._tags = {"run": run_id(str(self.run.root))}
-        self._gauges = {
-            "generation": Gauge("hola_generation", "last completed generation", tags),
-            "learner_success": Gauge("hola_learner_success", "learner success rate", tags),
-            "phi_entropy": Gauge("hola_phi_entropy", "entropy of phi (nats)", tags),
-            "population_size": Gauge("hola_population_size", "members", tags),
-        }
-        self._tb = summary_writer(self.run.tensorboard)
+        self.telemetry = Telemetry(
+            self.run.tensorboard, tags or {"run": run_id(str(self.run.root)), "trial": ""}
+        )
+        """the run's figures as Ray metrics and TensorBoard events (`tags`: run, trial)"""
+
+    def __repr__(self) -> str:
+        """The dashboard's Repr column (`ray list actors --detail`: repr_name). Ray takes it
+        once, when the actor starts: the state the run starts or resumes from; the live
+        figures are its metrics (`hola_ray.population.telemetry`) and `status --live`."""
+        if not hasattr(self, "telemetry"):  # Ray asks after an __init__ that failed, too
+            return "coordinator (not started)"
+        last = self.last_metrics
+        if self.generation is None:
+            state = "starting at generation 0"
+        else:
+            state = (
+                f"generation {self.generation}, {len(self.population.members)} members, "
+                f"φ entropy {float(last.get('phi_entropy', 0.0)):.3f}"
+            )
+            if last.get("accepted") not in (None, ""):
+                node = last.get("candidate")
+                state += f", last: {f'accepted as node {node}' if last['accepted'] else 'rejected'}"
+        tags = self.telemetry.tags
+        name = tags["run"] + (f"/{tags['trial']}" if tags["trial"] else "")
+        return f"coordinator:{name} ({self.method}; {state})"
 
     # ---- the generation's steps ---------------------------------------------------------
     def last_completed(self) -> int | None:
@@ -198,10 +195,12 @@ class Coordinator:
         phi = self.rules.phi(self.population)
         eta = self.population.eta()
         row = dict(metrics)
+        accepted = int(bool(row.get("accepted", 0)))
         row.update(
             generation=generation,
             population_size=len(self.population.members),
             phi_entropy=phi_entropy(phi),
+            acceptances=int(self.last_metrics.get("acceptances", 0)) + accepted,
         )
         files = {
             "state.json": {
@@ -233,7 +232,7 @@ class Coordinator:
         self.generation = generation
         self.last_metrics = row
         self._edges = []
-        self._publish(row, iterations)
+        self.telemetry.row(row, iterations)
         return row
 
     def complete(self, generation: int, figures: Mapping[str, Any]) -> None:
@@ -242,35 +241,7 @@ class Coordinator:
         self.run.complete(generation, figures)
         if generation == self.generation:
             self.last_metrics = {**self.last_metrics, **figures}
-        success = figures.get("learner_success")
-        if success is not None and math.isfinite(success):
-            self._gauges["learner_success"].set(success, tags=self._tags)
-        for key, value in figures.items():
-            numeric = isinstance(value, int | float) and not isinstance(value, bool)
-            if numeric and math.isfinite(value):
-                self._tb.add_scalar(key, value, generation)
-        self._tb.flush()
-
-    def _publish(self, row: Mapping[str, Any], iterations: Sequence[Mapping[str, float]]) -> None:
-        g = row["generation"]
-        # per PPO iteration, on the run's env-step axis (pre-training on its own)
-        group = "pretrain" if g == 0 else "iteration"
-        before = int(row.get("env_steps", 0)) - int(iterations[-1]["env_steps"]) if g else 0
-        for it in iterations:
-            for key, value in it.items():
-                if key != "env_steps" and math.isfinite(value):
-                    self._tb.add_scalar(f"{group}/{key}", value, before + int(it["env_steps"]))
-        self._gauges["generation"].set(g, tags=self._tags)
-        self._gauges["phi_entropy"].set(row["phi_entropy"], tags=self._tags)
-        self._gauges["population_size"].set(row["population_size"], tags=self._tags)
-        success = row.get("learner_success")
-        if success is not None and math.isfinite(success):
-            self._gauges["learner_success"].set(success, tags=self._tags)
-        for key, value in row.items():
-            numeric = isinstance(value, int | float) and not isinstance(value, bool)
-            if numeric and key != "generation" and math.isfinite(value):
-                self._tb.add_scalar(key, value, g)
-        self._tb.flush()
+        self.telemetry.monitors(generation, figures)
 
     # ---- views --------------------------------------------------------------------------
     def slots(self) -> dict[int, int]:
@@ -307,7 +278,7 @@ class Coordinator:
         }
 
     def close(self) -> None:
-        self._tb.close()
+        self.telemetry.close()
 
 
 def start_coordinator(run_dir: Path, *args: Any) -> Any:

@@ -18,7 +18,6 @@ from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
 
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.methods.config import RunConfig
-from hola_ray.methods.trainer import make_oracle
 from hola_ray.oracle import LEARNER, member_module
 
 CONFIG = RunConfig.from_dict(
@@ -43,7 +42,7 @@ COLUMNS = ("obs", "actions", "rewards", "action_dist_inputs", "action_logp")
 
 @pytest.fixture(scope="module")
 def oracle(ray_session):
-    o = make_oracle(CONFIG)
+    o = CONFIG.strategy.make_oracle(CONFIG)
     o.train(300, progress=False)
     yield o
     o.stop()

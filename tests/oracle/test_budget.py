@@ -9,7 +9,6 @@ from __future__ import annotations
 import pytest
 
 from hola_ray.methods.config import RunConfig
-from hola_ray.methods.trainer import make_oracle
 from hola_ray.oracle import LEARNER
 
 BUDGET = 2400
@@ -38,7 +37,8 @@ def config(method: str, budget: str) -> RunConfig:
 
 
 def train(method: str, budget: str):
-    oracle = make_oracle(config(method, budget))
+    run_config = config(method, budget)
+    oracle = run_config.strategy.make_oracle(run_config)
     try:
         stats = oracle.train(BUDGET, progress=False)
         sampled = oracle.algo.metrics.peek(

@@ -8,7 +8,6 @@ import pytest
 import torch
 
 from hola_ray.methods.config import RunConfig
-from hola_ray.methods.trainer import make_oracle
 from hola_ray.oracle import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.connectors import mean_policy_logp
 from hola_ray.policies.learned import (
@@ -44,7 +43,7 @@ def beta_mean(inputs: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def oracle(ray_session):
-    o = make_oracle(CONFIG)
+    o = CONFIG.strategy.make_oracle(CONFIG)
     o.train(400, progress=False)  # weights pushed after a first train() are the hard case
     yield o
     o.stop()
@@ -255,7 +254,7 @@ def test_spread_stays_bounded_while_training():
         CONFIG.to_dict()
         | {"oracle": CONFIG.to_dict()["oracle"] | {"entropy_coef": 0.05, "lr": 0.01}}
     )
-    oracle = make_oracle(wide, seed=3)
+    oracle = wide.strategy.make_oracle(wide, seed=3)
     try:
         stats = oracle.train(1600, progress=False)
 
@@ -298,7 +297,7 @@ def seated_modules(oracle, timesteps: int) -> list[dict[str, str]]:
 
 def test_self_play_seats_the_learner_in_every_slot():
     config = RunConfig.from_dict(CONFIG.to_dict() | {"method": "sp"})
-    oracle = make_oracle(config)
+    oracle = config.strategy.make_oracle(config)
     try:
         assert oracle.modules == [LEARNER] and oracle.members == []
         episodes = seated_modules(oracle, 300)
@@ -513,7 +512,8 @@ def test_an_overlapped_oracle_samples_during_the_update_and_never_trains_on_an_o
     `train` call, so after `set_phi` every trained episode follows the new φ."""
     data = CONFIG.to_dict()
     data["oracle"]["overlap"] = True
-    oracle = make_oracle(RunConfig.from_dict(data))
+    built = RunConfig.from_dict(data)
+    oracle = built.strategy.make_oracle(built)
     group = oracle.algo.learner_group
     seen: list[tuple[int, set[str]]] = []  # per update: requests in flight, partner modules
     update = group.update

@@ -119,7 +119,8 @@ def test_the_coordinators_process_never_loads_torch(tmp_path):
     import torch
 
     script = (
-        "import sys, pathlib; import hola_ray.population.coordinator as c; "
+        "import sys, pathlib; import hola_ray.population.coordinator; "
+        "import hola_ray.population.telemetry as c; "
         f"c.summary_writer(pathlib.Path({str(tmp_path / 'tb')!r})).add_scalar('x', 1.0, 0); "
         "print(sorted(m for m in sys.modules if m.split('.')[0] == 'torch'))"
     )

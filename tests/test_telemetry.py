@@ -1,0 +1,91 @@
+"""Watching a run from Ray: its figures as Prometheus series on the metrics port
+(`--metrics-port`), equal to metrics.csv, and the coordinator's Repr in the state API."""
+
+from __future__ import annotations
+
+import re
+import socket
+import time
+import urllib.request
+
+import pytest
+import yaml
+
+from hola_ray.methods.config import RunConfig
+from hola_ray.methods.trainer import Trainer
+from hola_ray.population.rundir import RunDir
+from hola_ray.population.telemetry import SERIES
+from tests.conftest import ROOT
+
+SMOKE = ROOT / "configs" / "smoke.yaml"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def watched():
+    """A local Ray as `python -m hola_ray.run --metrics-port PORT` starts it, with its
+    dashboard: the metrics port and the dashboard's URL."""
+    import ray
+
+    from hola_ray.process import NAMESPACE, init_ray
+
+    port = free_port()
+    url = init_ray(NAMESPACE, 2, dashboard=True, metrics_port=port)
+    yield port, url
+    ray.shutdown()
+
+
+def scrape(port: int) -> dict[tuple[str, str, str], float]:
+    """(series, run, trial) → value of every `hola_ray_*` series Ray serves."""
+    text = urllib.request.urlopen(f"http://127.0.0.1:{port}/metrics", timeout=5).read().decode()
+    out = {}
+    for line in text.splitlines():
+        found = re.match(r"^ray_(hola_ray_\w+)\{(.*)\} (\S+)$", line)
+        if found:
+            tags = dict(re.findall(r'(\w+)="([^"]*)"', found[2]))
+            out[(found[1], tags["run"], tags["trial"])] = float(found[3])
+    return out
+
+
+def test_a_runs_figures_are_served_as_metrics_equal_to_its_csv(watched, tmp_path):
+    """A smoke run's figures appear on the metrics port as `hola_ray_*` gauges tagged by
+    run and trial, each equal to the last metrics.csv row's column, the generation series
+    at the last generation; the coordinator's Repr names the run and its state."""
+    from ray.util.state import list_actors
+
+    metrics_port, dashboard = watched
+    config = RunConfig.from_dict(yaml.safe_load(SMOKE.read_text()))
+    tags = {"run": "watched", "trial": "hola-s0"}
+    Trainer(config, tmp_path / "run", progress=False, tags=tags).fit()
+    last = RunDir(tmp_path / "run").metrics_rows()[-1]
+    wanted = {f"hola_ray_{name}": float(last[column]) for name, (column, _) in SERIES.items()}
+    assert wanted["hola_ray_generation"] == config.generations == 1
+    assert wanted["hola_ray_acceptances"] == int(last["accepted"])
+    deadline, seen = time.monotonic() + 60, {}
+    while time.monotonic() < deadline:  # Ray exports on an interval of its own
+        seen = {s: v for (s, run, trial), v in scrape(metrics_port).items() if run == "watched"}
+        if seen == wanted:
+            break
+        time.sleep(1)
+    assert seen == wanted
+    assert all(trial == "hola-s0" for (_, run, trial) in scrape(metrics_port) if run == "watched")
+
+    # the dashboard's state API (this test's Ray's, not another's on the machine)
+    [actor] = list_actors(dashboard, filters=[("class_name", "=", "Coordinator")], detail=True)
+    assert actor.repr_name == "coordinator:watched/hola-s0 (hola; starting at generation 0)"
+
+
+def test_the_grafana_dashboard_plots_every_series_per_run_and_trial():
+    import json
+
+    dashboard = json.loads((ROOT / "cluster" / "grafana" / "hola_ray_dashboard.json").read_text())
+    exprs = [p["targets"][0]["expr"] for p in dashboard["panels"]]
+    plotted = {re.search(r"ray_(hola_ray_\w+)\{", e)[1] for e in exprs}
+    assert plotted == {f"hola_ray_{name}" for name in SERIES}
+    assert all(e.startswith("max by (run, trial) (") for e in exprs)
+    assert [v["name"] for v in dashboard["templating"]["list"]] == ["datasource", "run", "trial"]
