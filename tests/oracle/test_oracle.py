@@ -579,3 +579,21 @@ def test_the_lean_pipeline_builds_rllibs_train_batch(local_learner, oracle):
         assert torch.equal(torch.as_tensor(ours[LEARNER][column]), torch.as_tensor(value)), column
     mask = torch.as_tensor(ours[LEARNER]["loss_mask"])
     assert 0 < int((~mask).sum()) < len(mask)  # one masked bootstrap row per chunk
+
+
+def test_every_method_starts_its_learner_from_the_same_weights_on_a_seed(ray_session):
+    """One start for every method (issue 47): on a seed, the learner's initial weights
+    are the same whether the Oracle seats it in every slot (sp), beside partners (hola; fcp,
+    mep, hola_r and uniform seat it alike) or among PBT's agents; another seed differs."""
+    starts = {}
+    for method, seed in (("sp", 3), ("hola", 3), ("pbt", 3), ("hola", 4)):
+        config = RunConfig.from_dict(CONFIG.to_dict() | {"method": method, "seed": seed})
+        oracle = config.strategy.make_oracle(config)
+        try:
+            starts[method, seed] = oracle.weights([LEARNER])[LEARNER]
+        finally:
+            oracle.stop()
+    reference = starts["sp", 3]
+    for key, state in starts.items():
+        same = all(np.array_equal(reference[k], state[k]) for k in reference)
+        assert same == (key[1] == 3), key
