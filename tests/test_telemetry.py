@@ -89,3 +89,18 @@ def test_the_grafana_dashboard_plots_every_series_per_run_and_trial():
     assert plotted == {f"hola_ray_{name}" for name in SERIES}
     assert all(e.startswith("max by (run, trial) (") for e in exprs)
     assert [v["name"] for v in dashboard["templating"]["list"]] == ["datasource", "run", "trial"]
+
+
+def test_run_and_experiment_take_a_metrics_port(monkeypatch, capsys):
+    """`--metrics-port PORT` reaches the Ray the command starts (`init_ray`, as the test
+    above starts it)."""
+    from hola_ray import process, run
+    from hola_ray.experiment import command
+
+    asked = []
+    monkeypatch.setattr(process, "init_ray", lambda *a, **k: asked.append(a))
+    run.init_ray(run.parse_args(["--metrics-port", "8080", "--no-dashboard"]))
+    assert asked == [("hola_ray", None, False, 8080)]
+    with pytest.raises(SystemExit):
+        command.main(["--help"])
+    assert "--metrics-port PORT" in capsys.readouterr().out
