@@ -39,6 +39,7 @@ _METRICS = (
     "accepted",
     "rank",
     "phi_entropy",
+    "phi_tv",
     "oracle_s",
     "oracle_env_steps_per_s",
     "grapher_s",
@@ -210,6 +211,12 @@ def plot_progress(run_dir: Path) -> Path:
         every = [int(r["generation"]) for r in rows]
         axes[1, 2].plot(every, [float(r["phi_entropy"]) for r in rows], marker="o")
         axes[1, 2].set(xlabel="generation", ylabel="φ entropy (nats)")
+        parted = [(int(r["generation"]), float(r["phi_tv"])) for r in rows if r.get("phi_tv")]
+        if parted:  # φ against the rival rule's (`Method.rival`), on its own axis
+            tv = axes[1, 2].twinx()
+            tv.plot(*zip(*parted, strict=True), color="tab:red", marker=".", lw=1)
+            tv.axhline(0.01, color="tab:red", ls=":", lw=0.8)
+            tv.set_ylabel("φ's distance from the rival rule's (TV)", color="tab:red")
     _wall_time_panels(rows, axes[0, 3], axes[1, 3])
     _time_panels(rows, axes[0, 4], axes[1, 4])
     fig.suptitle(run_dir.name, fontsize=9)
