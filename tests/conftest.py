@@ -141,7 +141,10 @@ def smoke_run(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
 
     from filelock import FileLock
 
-    shared = tmp_path_factory.getbasetemp().parent  # one folder for every xdist worker
+    base = tmp_path_factory.getbasetemp()
+    # one folder for every xdist worker of this session (a worker's basetemp is under the
+    # session's); without xdist the session's own, never one an earlier session left
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
     done = shared / "smoke.json"
     with FileLock(str(shared / "smoke.lock")):
         if not done.is_file():

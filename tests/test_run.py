@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SMOKE = ROOT / "configs" / "smoke.yaml"
 
 
-def test_smoke_run_writes_the_whole_run_directory(smoke_run):
+def test_smoke_run_writes_the_whole_run_directory(smoke_run, tmp_path):
     out, done = smoke_run
     assert done.returncode == 0, done.stderr[-3000:]
     assert "gen 1: learner success" in done.stdout
@@ -92,7 +92,7 @@ def test_smoke_run_writes_the_whole_run_directory(smoke_run):
 
     from hola_ray.population.rundir import metrics_differences
 
-    twin = Path(str(out) + "-twin")
+    twin = tmp_path / "twin"  # a copy of the shared run, never beside it
     shutil.copytree(out, twin)
     row = json.loads((twin / "generations" / "gen_0001" / "metrics.json").read_text())
     row["oracle_s"] += 1.0
