@@ -587,7 +587,9 @@ def test_every_method_starts_its_learner_from_the_same_weights_on_a_seed(ray_ses
     mep, hola_r and uniform seat it alike) or among PBT's agents; another seed differs."""
     starts = {}
     for method, seed in (("sp", 3), ("hola", 3), ("pbt", 3), ("hola", 4)):
-        config = RunConfig.from_dict(CONFIG.to_dict() | {"method": method, "seed": seed})
+        raw = CONFIG.to_dict() | {"method": method, "seed": seed}
+        raw["oracle"] = raw["oracle"] | {"env_runners": 0}  # no sampling here: no runner actor
+        config = RunConfig.from_dict(raw)
         oracle = config.strategy.make_oracle(config)
         try:
             starts[method, seed] = oracle.weights([LEARNER])[LEARNER]
