@@ -198,10 +198,32 @@ def pytest_configure(config) -> None:
     config.addinivalue_line(
         "markers", "e2e: drives the commands end to end in subprocesses (own timeout each)"
     )
+    config.addinivalue_line("markers", "ray: the module starts a Ray of its own")
     controller = not hasattr(config, "workerinput")
     if controller and getattr(config.option, "numprocesses", None):
         for part in ("step", "reset"):  # while the workers start and collect
             _WARMING.append(subprocess.Popen([sys.executable, "-c", _WARM, part], cwd=ROOT))
+
+
+_STARTS_RAY = {"ray_session", "smoke_run", "commands"}
+
+
+def pytest_collection_modifyitems(session, config, items) -> None:
+    """The modules that start commands (`e2e`) first, then those that start a Ray, then
+    the rest, each group in collection order: the workers (`--dist loadfile`, no
+    reordering by count) take the long modules first and end on short ones, so that
+    neither waits long for the other at the end. A rule on what a module does, no list."""
+    weight: dict[str, int] = {}
+    for item in items:
+        module = item.nodeid.split("::")[0]
+        if item.get_closest_marker("e2e"):
+            rank = 0
+        elif item.get_closest_marker("ray") or _STARTS_RAY & set(item.fixturenames):
+            rank = 1
+        else:
+            rank = 2
+        weight[module] = min(weight.get(module, 2), rank)
+    items.sort(key=lambda item: weight[item.nodeid.split("::")[0]])
 
 
 @pytest.hookimpl(optionalhook=True)

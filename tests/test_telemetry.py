@@ -18,6 +18,7 @@ from hola_ray.population.telemetry import SERIES
 from tests.conftest import ROOT
 
 SMOKE = ROOT / "configs" / "smoke.yaml"
+pytestmark = pytest.mark.ray  # its own Ray, with the dashboard
 
 
 def free_port() -> int:
