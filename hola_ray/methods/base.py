@@ -16,12 +16,11 @@ import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
-
 from hola_ray.oracle import Oracle
 from hola_ray.oracle.config import Seating
 from hola_ray.population.evaluators import evaluate_teams
-from hola_ray.population.state import Decision, Population
+from hola_ray.population.rules import Uniform
+from hola_ray.population.state import Decision
 
 if TYPE_CHECKING:
     from hola_ray.methods.config import RunConfig
@@ -58,29 +57,6 @@ class Origin:
     sets_learner: bool = False
     """each generation puts its own weights into the learner (`before_training`; PBT
     trains its agents in turn): `pretrain.learner_start` does not apply"""
-
-
-@dataclass(frozen=True)
-class Uniform:
-    """Rules: partners drawn uniformly from the members; a candidate joins when `admit`
-    and its η rank is within the top m."""
-
-    admit: bool = True
-
-    def setup(self, population: Population) -> None:
-        pass
-
-    def phi(self, population: Population, exclude_slot: int | None = None) -> dict[int, float]:
-        members = population.drawable(exclude_slot)
-        return {v: 1.0 / len(members) for v in members}
-
-    def values(self, population: Population) -> dict[int, float | None]:
-        return dict.fromkeys(population.members)
-
-    def decide(
-        self, population: Population, slot: int | None, rng: np.random.Generator
-    ) -> Decision:
-        return population.decide(admit=self.admit)
 
 
 class Method:

@@ -9,45 +9,13 @@ rank is within the top m.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
-import numpy as np
-
-from hola_ray.hypergraph import phi
-from hola_ray.hypergraph.phi import node_values
-from hola_ray.methods.base import Method, Origin, Uniform
-from hola_ray.population.state import Decision, Population
+from hola_ray.methods.base import Method, Origin
+from hola_ray.population.rules import InverseValue, Uniform
 
 if TYPE_CHECKING:
     from hola_ray.methods.config import RunConfig
-
-
-@dataclass(frozen=True)
-class InverseValue:
-    """Rules: φ = the normalised shifted inverse of a node value (`kind`: myerson or
-    mean_reward; `hola_ray.hypergraph.phi`) over the members a partner may be drawn from;
-    a candidate joins when its η rank is within the top m."""
-
-    kind: str
-    shift: float
-
-    def setup(self, population: Population) -> None:
-        pass
-
-    def phi(self, population: Population, exclude_slot: int | None = None) -> dict[int, float]:
-        full = phi(population.member_graph(), self.kind, self.shift)
-        kept = {v: full[v] for v in population.drawable(exclude_slot)}
-        norm = sum(kept.values())
-        return {v: w / norm for v, w in kept.items()}
-
-    def values(self, population: Population) -> dict[int, float | None]:
-        return node_values(population.member_graph(), self.kind)
-
-    def decide(
-        self, population: Population, slot: int | None, rng: np.random.Generator
-    ) -> Decision:
-        return population.decide()
 
 
 class HolaDrone(Method):

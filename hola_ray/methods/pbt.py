@@ -7,19 +7,17 @@ explores (perturbs that agent's lr and entropy coefficient)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
-import numpy as np
 import ray
 
 from hola_ray.env.checks import finite_in, require
-from hola_ray.hypergraph import centrality, rank_of
-from hola_ray.methods.base import Built, Method, Origin, Uniform, pretrain_population
+from hola_ray.methods.base import Built, Method, Origin, pretrain_population
 from hola_ray.methods.config import PRETRAIN_SCHEMES
 from hola_ray.oracle import LEARNER, Oracle
-from hola_ray.population.state import Decision, Population
+from hola_ray.population.rules import ExploitExplore
+from hola_ray.population.state import Decision
 
 if TYPE_CHECKING:
     from hola_ray.methods.config import RunConfig
@@ -51,75 +49,6 @@ class PBTConfig:
         require(
             self.start in PRETRAIN_SCHEMES, "pbt.start", " or ".join(PRETRAIN_SCHEMES), self.start
         )
-
-
-@dataclass(frozen=True)
-class ExploitExplore:
-    """Rules: partners uniform over the other agents; the candidate (the agent of `slot`
-    after its training) replaces its parent there, then exploits and explores.
-
-    Kept in `population.extra`: `agent_scores` (slot → the mean team return of its agent's
-    hyperedges after its last training) and `agent_hyper` (slot → its lr and entropy
-    coefficient), keyed by the slot as a string."""
-
-    quantile: float
-    perturb: Sequence[float]
-    lr: float
-    entropy_coef: float
-
-    def setup(self, population: Population) -> None:
-        """Every agent at the run's lr and entropy coefficient, no scores yet; a population
-        that holds them already (a resumed run) keeps its own."""
-        if "agent_hyper" in population.extra:
-            return
-        population.extra["agent_scores"] = {}
-        population.extra["agent_hyper"] = {
-            str(slot): {"lr": self.lr, "entropy_coef": self.entropy_coef}
-            for slot in population.slots.values()
-        }
-
-    def phi(self, population: Population, exclude_slot: int | None = None) -> dict[int, float]:
-        return Uniform().phi(population, exclude_slot)
-
-    def values(self, population: Population) -> dict[int, float | None]:
-        return Uniform().values(population)
-
-    def decide(
-        self, population: Population, slot: int | None, rng: np.random.Generator
-    ) -> Decision:
-        """The candidate replaces its parent in `slot`; its score is the mean return of its
-        hyperedges. Once every agent has a score, an agent in the bottom quantile takes the
-        weights and score of one drawn from the top quantile (`copied_from`) and that
-        agent's hyperparameters times a factor drawn from `perturb`; a copied candidate's
-        hyperedges are dropped, as they measured weights it no longer has."""
-        p, node = population, population.candidate
-        if node is None or slot is None:
-            raise ValueError("no candidate to decide on, or no slot it was trained from")
-        scores: dict[str, float] = p.extra["agent_scores"]
-        hyper: dict[str, dict[str, float]] = p.extra["agent_hyper"]
-        parent = p.slot_member(slot)
-        edges = [w for nodes, w in p.hyfog.weights() if node in nodes]
-        rank = rank_of(p.hyfog, node)
-        eta = centrality(p.hyfog)[node]
-        p.slots.pop(parent)
-        p.hyfog.remove_node(parent)
-        p.slots[node] = slot
-        scores[str(slot)] = float(np.mean(edges)) if edges else float("-inf")
-        copied = None
-        if len(scores) == len(p.slots):
-            k = max(1, int(len(p.slots) * self.quantile))
-            order = sorted(scores, key=lambda s: scores[s])
-            if str(slot) in order[:k] and str(slot) not in order[-k:]:
-                source = int(rng.choice(order[-k:]))
-                copied = p.slot_member(source)
-                scores[str(slot)] = scores[str(source)]
-                hyper[str(slot)] = {
-                    h: v * float(rng.choice(self.perturb)) for h, v in hyper[str(source)].items()
-                }
-                p.hyfog.remove_node(node)
-                p.hyfog.add_node(node)
-        p.candidate = None
-        return Decision(node, True, rank, eta, parent, slot, copied)
 
 
 class PBT(Method):

@@ -100,7 +100,7 @@ def test_best_response_methods_keep_their_population_fixed(tmp_path, capsys, met
         assert "trained 1 self-play agent(s) for FCP (3 checkpoints)" in said
         assert all(v == pytest.approx(1 / 3) for v in phi.values())
     else:
-        from hola_ray.methods.mep import rank_priorities
+        from hola_ray.population.rules import rank_priorities
 
         returns = {int(k): v for k, v in states[1]["population"]["learner_returns"].items()}
         assert set(returns) == set(range(size))  # every member met the learner

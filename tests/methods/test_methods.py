@@ -12,8 +12,8 @@ import pytest
 
 from hola_ray.env.config import ConfigError
 from hola_ray.methods.config import METHODS, RunConfig
-from hola_ray.methods.mep import rank_priorities
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
+from hola_ray.population.rules import rank_priorities
 from hola_ray.population.state import EdgeResult, Population
 
 
