@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -73,7 +74,10 @@ def oracle_alone(tree: Path, samples: int, sets: list[str]) -> float:
     ]
     for s in sets:
         command += ["--set", s]
-    done = subprocess.run(command, cwd=tree, capture_output=True, text=True)
+    # the tree's own package, not the one installed in the venv (a script's folder, not
+    # its working directory, heads sys.path)
+    env = {**os.environ, "PYTHONPATH": str(tree)}
+    done = subprocess.run(command, cwd=tree, capture_output=True, text=True, env=env)
     if done.returncode != 0:
         raise RuntimeError(f"oracle_speed failed in {tree}:\n{done.stderr[-3000:]}")
     rows = [json.loads(x) for x in done.stdout.splitlines() if '"learner_samples_per_s"' in x]
