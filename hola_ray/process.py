@@ -15,7 +15,7 @@ NOISY_LOGGERS = (
 """Loggers whose warnings say nothing a user of this project can act on."""
 
 RAY_RUNTIME_ENV = {
-    "worker_process_setup_hook": "hola_ray.progress.quiet_ray_noise",
+    "worker_process_setup_hook": "hola_ray.process.quiet_ray_noise",
     "env_vars": {"PYTHONHASHSEED": "0"},
 }
 """`ray.init(runtime_env=...)`: every Ray worker of a run silences the same loggers and

@@ -81,3 +81,19 @@ def test_a_command_leaves_with_its_code_and_every_object_frozen():
         assert gc.get_freeze_count() > 1000
     finally:
         gc.unfreeze()
+
+
+def test_the_cluster_workers_setup_hook_names_a_function_that_exists():
+    """Workers on a cluster's nodes (and a local Ray started without a fixed hash seed) run
+    `RAY_RUNTIME_ENV`'s setup hook first: a name that does not import makes every worker
+    fail at its start, and Ray starts them again and again (a benchmark hung so, 584 worker
+    logs in 9 minutes, when the hook still named its old module)."""
+    import importlib
+
+    from hola_ray.process import RAY_RUNTIME_ENV, worker_runtime_env
+
+    module, _, name = RAY_RUNTIME_ENV["worker_process_setup_hook"].rpartition(".")
+    hook = getattr(importlib.import_module(module), name)
+    assert callable(hook)
+    hook()  # runs in a plain process too
+    assert worker_runtime_env(local=False) == RAY_RUNTIME_ENV
