@@ -5,8 +5,6 @@ threads and seed, quiet loggers, and the exit. Apart from the progress bar
 from __future__ import annotations
 
 import sys
-import threading
-from collections.abc import Callable
 from typing import Any, NoReturn
 
 NOISY_LOGGERS = (
@@ -144,27 +142,3 @@ def quiet_ray_noise() -> None:
 
     for name in NOISY_LOGGERS:
         logging.getLogger(name).setLevel(logging.ERROR)
-
-
-class Aside:
-    """`work()` in a thread of its own from now on; `result()` waits for it and gives
-    its value (or raises what it raised)."""
-
-    def __init__(self, work: Callable[[], Any]):
-        self._value: Any = None
-        self._error: BaseException | None = None
-
-        def run() -> None:
-            try:
-                self._value = work()
-            except BaseException as error:  # handed to result()
-                self._error = error
-
-        self._thread = threading.Thread(target=run, name="aside", daemon=True)
-        self._thread.start()
-
-    def result(self) -> Any:
-        self._thread.join()
-        if self._error is not None:
-            raise self._error
-        return self._value

@@ -97,15 +97,3 @@ def test_the_cluster_workers_setup_hook_names_a_function_that_exists():
     assert callable(hook)
     hook()  # runs in a plain process too
     assert worker_runtime_env(local=False) == RAY_RUNTIME_ENV
-
-
-def test_work_done_aside_gives_its_value_or_raises_its_error():
-    """`Aside`: the Oracle's build computes the spread probe's observations in a thread
-    while RLlib waits for its env runners; a failure there surfaces in the build."""
-    import pytest
-
-    from hola_ray.process import Aside
-
-    assert Aside(lambda: 41 + 1).result() == 42
-    with pytest.raises(ZeroDivisionError):
-        Aside(lambda: 1 / 0).result()

@@ -15,6 +15,7 @@ from __future__ import annotations
 import time
 import weakref
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -40,7 +41,6 @@ from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitCatalog, PursuitPPOModule
 from hola_ray.oracle.overlap import OverlappedPPO
 from hola_ray.policies.learned import MLPPolicy
-from hola_ray.process import Aside
 from hola_ray.progress import progress as progress_bar
 
 ENV_NAME = "hola_ray_pursuit"
@@ -197,12 +197,13 @@ class Oracle:
 
             return reference_observations(env)
 
-        aside = Aside(drivers_part)
-        self.algo: Algorithm = self._algorithm_config(self.trained, seed).build_algo()
-        _PUSHED[id(self.algo)] = self._pushed  # read by _RepushOnRecreate
-        # Every 4th of the reference observations (≈ 1,500): the per-iteration spread then
-        # costs 4 ms instead of 24 (a tenth of a paper-PPO iteration otherwise)
-        self._reference_obs = aside.result()[::4]
+        with ThreadPoolExecutor(1) as aside:
+            reference = aside.submit(drivers_part)
+            self.algo: Algorithm = self._algorithm_config(self.trained, seed).build_algo()
+            _PUSHED[id(self.algo)] = self._pushed  # read by _RepushOnRecreate
+            # Every 4th of the reference observations (≈ 1,500): the per-iteration spread
+            # then costs 4 ms instead of 24 (a tenth of a paper-PPO iteration otherwise)
+            self._reference_obs = reference.result()[::4]
 
     def _algorithm_config(self, trainable: Sequence[str], seed: int) -> PPOConfig:
         o, env = self.config, self.env
