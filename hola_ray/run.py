@@ -187,14 +187,21 @@ def finished(out: Path, config: RunConfig) -> bool:
     return True
 
 
-def init_ray(args: argparse.Namespace) -> None:
-    """Join RAY_ADDRESS's cluster if set, else start a local Ray."""
-    from hola_ray.process import NAMESPACE
-    from hola_ray.process import init_ray as start
+def init_ray(args: argparse.Namespace) -> type:
+    """Join RAY_ADDRESS's cluster if set, else start a local Ray; returns the `Trainer`
+    class, imported (RLlib, 1.5 s) while Ray starts (`hola_ray.process.init_ray_importing`)."""
+    from hola_ray.process import NAMESPACE, init_ray_importing
 
-    url = start(NAMESPACE, args.num_cpus, not args.no_dashboard, args.metrics_port)
+    url, trainer = init_ray_importing(
+        "hola_ray.methods.trainer",
+        NAMESPACE,
+        args.num_cpus,
+        not args.no_dashboard,
+        args.metrics_port,
+    )
     if url:
         print(f"Ray dashboard: {url}", flush=True)
+    return trainer.Trainer
 
 
 def main(argv: list[str] | None = None, started: float | None = None) -> int:
@@ -227,9 +234,8 @@ def main(argv: list[str] | None = None, started: float | None = None) -> int:
     if note:
         print(note, flush=True)
     try:
-        init_ray(args)
+        Trainer = init_ray(args)
         interrupt.install()  # after ray.init: a Ctrl-C swallowed inside Ray is not lost
-        from hola_ray.methods.trainer import Trainer
 
         print(
             f"training run in {out}: method {config.method}, {config.generations} "

@@ -16,7 +16,6 @@ import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from hola_ray.oracle import Oracle
 from hola_ray.oracle.config import Seating
 from hola_ray.population.evaluators import evaluate_teams
 from hola_ray.population.rules import Uniform
@@ -26,7 +25,7 @@ if TYPE_CHECKING:
     from hola_ray.methods.config import RunConfig
     from hola_ray.methods.generation_zero import GenerationZero
     from hola_ray.methods.trainer import Trainer
-    from hola_ray.oracle.trainer import TrainStats
+    from hola_ray.oracle.trainer import Oracle, TrainStats
 
 
 @dataclass(frozen=True)
@@ -96,6 +95,8 @@ class Method:
         """The Oracle a run of `config` trains its learner with, seated as this method
         says (`seed`: the run's unless given)."""
         seed = config.seed if seed is None else seed
+        from hola_ray.oracle.trainer import Oracle  # RLlib: not needed to read a config
+
         return Oracle(config.env, config.oracle, self.seating(config), seed)
 
     def population_size(self, config: RunConfig) -> int:
@@ -169,6 +170,8 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
     steps as teams of their own copies and stopped once every member is competent. After
     each check the members are saved in the run directory (`RunDir.save_pretrain`): a
     stopped build resumes from its last check, with a fresh optimizer and sampler."""
+    from hola_ray.oracle.trainer import Oracle
+
     c = trainer.config
     p, n = c.pretrain, c.population.initial_size
 

@@ -10,8 +10,8 @@ from typing import TYPE_CHECKING, ClassVar
 
 from hola_ray.env.checks import positive_int, require
 from hola_ray.methods.base import Built, Method, Origin, summed
-from hola_ray.oracle import LEARNER, Oracle
 from hola_ray.oracle.config import Seating
+from hola_ray.oracle.mapping import LEARNER
 
 if TYPE_CHECKING:
     from hola_ray.methods.config import RunConfig
@@ -57,6 +57,8 @@ class FCP(Method):
         )
 
     def build_population(self, trainer: Trainer) -> Built:
+        from hola_ray.oracle.trainer import Oracle
+
         c = trainer.config
         # FCP's partners, like MEP's, are built in environment steps (`fcp.env_steps`)
         oracle_config = dataclasses.replace(c.oracle, budget="env_steps")

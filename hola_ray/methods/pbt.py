@@ -15,13 +15,14 @@ import ray
 from hola_ray.env.checks import finite_in, require
 from hola_ray.methods.base import Built, Method, Origin, pretrain_population
 from hola_ray.methods.config import PRETRAIN_SCHEMES
-from hola_ray.oracle import LEARNER, Oracle
+from hola_ray.oracle.mapping import LEARNER
 from hola_ray.population.rules import ExploitExplore
 from hola_ray.population.state import Decision
 
 if TYPE_CHECKING:
     from hola_ray.methods.config import RunConfig
     from hola_ray.methods.trainer import Trainer
+    from hola_ray.oracle.trainer import Oracle
 
 
 @dataclass(frozen=True)
