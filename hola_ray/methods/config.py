@@ -101,6 +101,13 @@ class PretrainConfig:
     checkpoint; with `population: none`, random); PBT, whose generations train its agents
     in turn, ignores it"""
 
+    start_agent: str = "none"
+    """a shipped population (as `population` names one) whose last node every method's
+    learner starts from at generation 1, in place of `learner_start`: a neutral start, the
+    same for every method of a seed and in no population a run trains beside, nor in a
+    pool (checked when the run starts); for an FCP-built start, its last agent's end
+    checkpoint. PBT, whose generations train its agents in turn, ignores it; none: off"""
+
     def validate(self) -> None:
         positive_int("pretrain", self, "env_steps", maximum=10**11)
         finite_in("pretrain", self, "alpha", 0.0, 1.0, "in [0, 1]")
@@ -126,6 +133,12 @@ class PretrainConfig:
             "pretrain.population",
             "none or a shipped population's name or folder",
             self.population,
+        )
+        require(
+            isinstance(self.start_agent, str) and bool(self.start_agent),
+            "pretrain.start_agent",
+            "none or a shipped population's name or folder",
+            self.start_agent,
         )
         require(
             self.learner_start in LEARNER_STARTS,

@@ -15,8 +15,10 @@ Where G_0 comes from (`GenerationZero.source`):
 
 Where the learner starts (`GenerationZero.learner_start`): "random" (RLlib's
 initialisation from the run's seed), "member" (generation 0's member with the highest η,
-the lowest node on a tie) or "shipped" (self-play: the most preferred member of the
-shipped population `pretrain.population` names, without the population).
+the lowest node on a tie), "shipped" (self-play: the most preferred member of the
+shipped population `pretrain.population` names, without the population) or "agent" (the
+last node of the shipped population `pretrain.start_agent` names: one neutral start for
+every method, refused if it is a member of the run's own generation 0).
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ KEY_FILE = "generation_zero_key.json"
 """in a generation-0 folder: the `generation_zero_key` it was built with"""
 
 Source = Literal["resume", "none", "adopt", "shipped", "reweigh", "build"]
-Start = Literal["random", "member", "shipped"]
+Start = Literal["random", "member", "shipped", "agent"]
 
 
 @dataclass(frozen=True)
@@ -62,7 +64,13 @@ class GenerationZero:
 def resolve(config: RunConfig, run: RunDir, adopt_from: Sequence[Path] = ()) -> GenerationZero:
     """Generation zero of a run of `config` in `run` (see the module doc). A shipped
     population that does not fit the run raises `shipped.PopulationError` here, before
-    anything is written or started."""
+    anything is written or started, and so does a start it may not take (`check_start`)."""
+    zero = _resolve(config, run, adopt_from)
+    check_start(config, zero)
+    return zero
+
+
+def _resolve(config: RunConfig, run: RunDir, adopt_from: Sequence[Path]) -> GenerationZero:
     c, method = config, config.strategy
     start = _learner_start(c)
     if run.last_completed() is not None:
@@ -85,8 +93,12 @@ def resolve(config: RunConfig, run: RunDir, adopt_from: Sequence[Path] = ()) -> 
 
 def _learner_start(c: RunConfig) -> Start:
     method = c.strategy
-    if c.pretrain.learner_start != "member" or method.origin.sets_learner:
+    if method.origin.sets_learner:
         return "random"  # PBT: each generation starts from one of its agents
+    if c.pretrain.start_agent != "none":
+        return "agent"
+    if c.pretrain.learner_start != "member":
+        return "random"
     if method.origin.kind is not None:
         return "member"
     return "shipped" if c.pretrain.shipped else "random"
@@ -147,7 +159,42 @@ def starting_member(
             f"{donor.root.name} (η {eta:.3f}, the highest of {len(manifest['members'])})"
         )
         return node, donor.load_member_state(node)
+    if zero.learner_start == "agent":
+        return _start_agent(config, say)
     return None
+
+
+def _start_agent(config: RunConfig, say: Callable[[str], None]) -> tuple[int, dict[str, Any]]:
+    """The last node of the shipped population `pretrain.start_agent`, verified as a
+    shipped population is (`check_start` has refused it if a partner holds it)."""
+    c = config
+    folder = shipped.population_dir(c.pretrain.start_agent, c.seed)
+    donor, manifest = shipped.load(folder, c.seed, c.layout(), str(shipped.read(folder)["kind"]))
+    entry = max(manifest["members"].values(), key=lambda e: int(e["node"]))
+    node = int(entry["node"])
+    say(
+        f"gen 1: the learner starts from {donor.root.name}'s node {node} ({entry['role']}; "
+        f"the common start, built at commit {str(manifest.get('commit'))[:8]})"
+    )
+    return node, donor.load_member_state(node)
+
+
+def check_start(config: RunConfig, zero: GenerationZero) -> None:
+    """Refuse a `pretrain.start_agent` whose start is a member of the run's shipped
+    generation 0 (a start is no partner of its learner), before anything starts."""
+    c = config
+    if zero.learner_start != "agent":
+        return
+    folder = shipped.population_dir(c.pretrain.start_agent, c.seed)
+    _, start = shipped.load(folder, c.seed, c.layout(), str(shipped.read(folder)["kind"]))
+    node = max(int(e["node"]) for e in start["members"].values())
+    held = {e["state_sha256"] for e in (zero.manifest or {}).get("members", {}).values()}
+    if any(e["state_sha256"] in held for e in start["members"].values()):
+        raise shipped.PopulationError(
+            f"pretrain.start_agent {folder.name}: a member of it (node {node} is the start) "
+            f"is in this run's generation 0, {Path(zero.donor or '').name}; a start must be "
+            "no partner of its learner"
+        )
 
 
 def _differences(a: Any, b: Any, prefix: str = "env") -> str:

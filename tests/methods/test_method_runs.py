@@ -385,6 +385,17 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
     for name, value in member.items():
         assert (weights[LEARNER][name] == value).all(), name
 
+    # a common start (`pretrain.start_agent`): the shipped population's last node, whatever
+    # the population the run trains beside
+    started.clear()
+    common = run | {"method": "sp", "pretrain": {"population": "none", "start_agent": "tiny-s0"}}
+    said = train(common, tmp_path / "common", capsys)
+    last = max(eta)
+    assert f"the learner starts from tiny-s0's node {last} (member; the common start" in said
+    [weights] = started
+    for name, value in r.load_member_state(last).items():
+        assert (weights[LEARNER][name] == value).all(), name
+
     # PBT may seat MEP's members as its starting agents; generation 1 trains agent 0
     train(run | {"method": "pbt"}, tmp_path / "pbt", capsys)
     pbt = RunDir(tmp_path / "pbt")

@@ -56,6 +56,33 @@ def test_a_method_without_a_population_takes_only_its_start_from_the_shipped_one
     assert not (tmp_path / "hola").exists()  # nothing written
 
 
+def test_a_common_start_is_taken_by_every_method_but_never_from_a_partner(tmp_path):
+    """`pretrain.start_agent` names a shipped population whose last node every method's
+    learner starts from (self-play included; PBT trains its own agents); one that is a
+    member of the run's own generation 0 is refused before anything starts."""
+    from hola_ray.methods.generation_zero import resolve
+    from hola_ray.population.rundir import RunDir
+    from hola_ray.population.shipped import PopulationError
+
+    def config(start: str, **top) -> RunConfig:
+        return RunConfig.from_dict(
+            DEFAULT | top | {"pretrain": {**DEFAULT["pretrain"], "start_agent": start}}
+        )
+
+    for method in ("hola", "sp", "uniform"):
+        zero = resolve(config("fcp-3v1-s0", method=method), RunDir(tmp_path / method))
+        assert zero.learner_start == "agent"
+    assert (
+        resolve(config("fcp-3v1-s0", method="pbt"), RunDir(tmp_path / "pbt")).learner_start
+        == "random"
+    )
+    with pytest.raises(PopulationError, match="no partner of its learner"):
+        resolve(config("mep-3v1-s0"), RunDir(tmp_path / "own"))
+    with pytest.raises(PopulationError, match="no shipped population 'nowhere-3v1'"):
+        resolve(config("nowhere-3v1"), RunDir(tmp_path / "missing"))
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
 @pytest.mark.parametrize(
     ("patch", "message"),
     [
@@ -70,6 +97,7 @@ def test_a_method_without_a_population_takes_only_its_start_from_the_shipped_one
         ({"pretrain": {"alpha": 2.0}}, r"pretrain.alpha must be in \[0, 1\]"),
         ({"pretrain": {"learner_start": "best"}}, r"learner_start must be random or member"),
         ({"pretrain": {"alpha_until": -1}}, r"pretrain.alpha_until must be an integer >= 0"),
+        ({"pretrain": {"start_agent": ""}}, r"pretrain.start_agent must be none or a shipped"),
         # absurd sizes: typos, not runs
         ({"oracle": {"hidden": [10**9]}}, r"oracle.hidden must be a list of at most 16"),
         ({"oracle": {"envs_per_runner": 10**8}}, r"envs_per_runner must be an integer in \[1,"),
