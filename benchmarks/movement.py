@@ -9,6 +9,9 @@ on the validation teammates only (never an evaluation pool: a pilot sizes a desi
   slope in points a generation with the slope's standard error;
 - per method: the mean slope over seeds with a t-interval, the first and the last
   generation's figure, and the standard deviation between seeds of the last;
+- the controls of the paper's question, per trial: how many candidates joined the
+  population (`accepted`), its last size, and the largest `phi_tv` (how far the φ used ever
+  departed from the rival rule's: 0 means hola trained as hola_r would have);
 - the paired difference A − B of the last generation's figure, seed by seed (trials of one
   seed share the population build and the validation episodes), its standard deviation,
   and the power calculation: the seeds n for which the paired 95 % t-interval's half-width
@@ -55,6 +58,32 @@ def curves(folder: Path, key: str) -> dict[str, dict[int, list[tuple[int, float]
         if points:
             out.setdefault(match["method"], {})[int(match["seed"])] = points
     return out
+
+
+def controls(folder: Path) -> dict[str, dict[str, dict[str, float]]]:
+    """method → seed → candidates joined, last population size and the largest phi_tv."""
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for trial in sorted((folder / "trials").iterdir()):
+        match = TRIAL.match(trial.name)
+        path = trial / "metrics.csv"
+        if match is None or not path.is_file():
+            continue
+        with open(path, newline="") as f:
+            rows = [r for r in csv.DictReader(f) if int(r["generation"]) >= 1]
+        if not rows:
+            continue
+        tv = column(rows, "phi_tv")
+        out.setdefault(match["method"], {})[match["seed"]] = {
+            "joined": sum(column(rows, "accepted")),
+            "population_size": (column(rows, "population_size") or [math.nan])[-1],
+            "phi_tv_max": max(tv) if tv else math.nan,
+        }
+    return out
+
+
+def column(rows: list[dict[str, str]], key: str) -> list[float]:
+    """A metrics column's values, the rows without it left out."""
+    return [float(r[key]) for r in rows if r.get(key) not in (None, "")]
 
 
 def slope(points: list[tuple[int, float]]) -> tuple[float, float]:
@@ -167,6 +196,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"{args.experiment}: no trial with {args.key} in its metrics.csv")
     result = {"experiment": str(args.experiment), "key": args.key}
     result |= summarise(found, args.a, args.b, args.half_width)
+    result["controls"] = controls(args.experiment)
     out = args.out or args.experiment
     out.mkdir(parents=True, exist_ok=True)
     result = json.loads(json.dumps(result).replace("NaN", "null"))  # strict JSON
