@@ -41,28 +41,9 @@ from scipy import stats
 TRIAL = re.compile(r"^(?P<method>.+)-s(?P<seed>\d+)$")
 
 
-def curves(folder: Path, key: str) -> dict[str, dict[int, list[tuple[int, float]]]]:
-    """method → seed → [(generation, figure)] over generations ≥ 1 that have the figure."""
-    out: dict[str, dict[int, list[tuple[int, float]]]] = {}
-    for trial in sorted((folder / "trials").iterdir()):
-        match = TRIAL.match(trial.name)
-        path = trial / "metrics.csv"
-        if match is None or not path.is_file():
-            continue
-        with open(path, newline="") as f:
-            points = [
-                (int(row["generation"]), float(row[key]))
-                for row in csv.DictReader(f)
-                if int(row["generation"]) >= 1 and row.get(key) not in (None, "")
-            ]
-        if points:
-            out.setdefault(match["method"], {})[int(match["seed"])] = points
-    return out
-
-
-def controls(folder: Path) -> dict[str, dict[str, dict[str, float]]]:
-    """method → seed → candidates joined, last population size and the largest phi_tv."""
-    out: dict[str, dict[str, dict[str, float]]] = {}
+def trials(folder: Path) -> list[tuple[str, int, list[dict[str, str]]]]:
+    """(method, seed, the metrics rows of generations ≥ 1) of every trial that has any."""
+    out = []
     for trial in sorted((folder / "trials").iterdir()):
         match = TRIAL.match(trial.name)
         path = trial / "metrics.csv"
@@ -70,10 +51,29 @@ def controls(folder: Path) -> dict[str, dict[str, dict[str, float]]]:
             continue
         with open(path, newline="") as f:
             rows = [r for r in csv.DictReader(f) if int(r["generation"]) >= 1]
-        if not rows:
-            continue
+        if rows:
+            out.append((match["method"], int(match["seed"]), rows))
+    return out
+
+
+def curves(folder: Path, key: str) -> dict[str, dict[int, list[tuple[int, float]]]]:
+    """method → seed → [(generation, figure)] over generations ≥ 1 that have the figure."""
+    out: dict[str, dict[int, list[tuple[int, float]]]] = {}
+    for method, seed, rows in trials(folder):
+        points = [
+            (int(r["generation"]), float(r[key])) for r in rows if r.get(key) not in (None, "")
+        ]
+        if points:
+            out.setdefault(method, {})[seed] = points
+    return out
+
+
+def controls(folder: Path) -> dict[str, dict[str, dict[str, float]]]:
+    """method → seed → candidates joined, last population size and the largest phi_tv."""
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for method, seed, rows in trials(folder):
         tv = column(rows, "phi_tv")
-        out.setdefault(match["method"], {})[match["seed"]] = {
+        out.setdefault(method, {})[str(seed)] = {
             "joined": sum(column(rows, "accepted")),
             "population_size": (column(rows, "population_size") or [math.nan])[-1],
             "phi_tv_max": max(tv) if tv else math.nan,
