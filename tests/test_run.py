@@ -381,3 +381,23 @@ def test_a_write_that_fails_during_a_generation_is_one_line_and_generations_stay
     assert r.completed() in ([0, 1], [0, 1, 2])
     for g in r.completed()[1:]:
         assert r.load_learner_state(g) and (r.generation(g) / "metrics.json").is_file()
+
+
+def test_reading_a_run_config_imports_no_rllib():
+    """`hola_ray.run` validates its config before Ray starts and imports RLlib while Ray
+    starts (`process.init_ray_importing`): the config's modules must not import RLlib, nor
+    must the evaluation actors' monitors (they would pay for it in every actor)."""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys\n"
+        "import hola_ray.run, hola_ray.methods.config, hola_ray.methods.monitors\n"
+        "from hola_ray.methods.config import RunConfig\n"
+        "RunConfig.from_dict(hola_ray.run.DEFAULT)\n"
+        "heavy = ('ray.rllib', 'hola_ray.oracle.trainer')\n"
+        "print(sorted(m for m in sys.modules if m.startswith(heavy)))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "[]"
