@@ -106,7 +106,8 @@ class PretrainConfig:
     learner starts from at generation 1, in place of `learner_start`: a neutral start, the
     same for every method of a seed and in no population a run trains beside, nor in a
     pool (checked when the run starts); for an FCP-built start, its last agent's end
-    checkpoint. PBT, whose generations train its agents in turn, ignores it; none: off"""
+    checkpoint. PBT, whose generations train its agents in turn, begins every agent as a
+    copy of it (with `population: none`); none: off"""
 
     def validate(self) -> None:
         positive_int("pretrain", self, "env_steps", maximum=10**11)

@@ -160,33 +160,42 @@ def starting_member(
         )
         return node, donor.load_member_state(node)
     if zero.learner_start == "agent":
-        return _start_agent(config, say)
+        node, state, named = start_agent(config)
+        say(f"gen 1: the learner starts from {named}")
+        return node, state
     return None
 
 
-def _start_agent(config: RunConfig, say: Callable[[str], None]) -> tuple[int, dict[str, Any]]:
+def start_agent(config: RunConfig) -> tuple[int, dict[str, Any], str]:
     """The last node of the shipped population `pretrain.start_agent`, verified as a
-    shipped population is (`check_start` has refused it if a partner holds it)."""
+    shipped population is (`check_start` has refused it if a partner holds it): the node,
+    its RLlib state and a phrase naming it."""
     c = config
     folder = shipped.population_dir(c.pretrain.start_agent, c.seed)
     donor, manifest = shipped.load(folder, c.seed, c.layout(), str(shipped.read(folder)["kind"]))
     entry = max(manifest["members"].values(), key=lambda e: int(e["node"]))
     node = int(entry["node"])
-    say(
-        f"gen 1: the learner starts from {donor.root.name}'s node {node} ({entry['role']}; "
-        f"the common start, built at commit {str(manifest.get('commit'))[:8]})"
+    named = (
+        f"{donor.root.name}'s node {node} ({entry['role']}; the common start, built at "
+        f"commit {str(manifest.get('commit'))[:8]})"
     )
-    return node, donor.load_member_state(node)
+    return node, donor.load_member_state(node), named
 
 
 def check_start(config: RunConfig, zero: GenerationZero) -> None:
-    """Refuse a `pretrain.start_agent` whose start is a member of the run's shipped
-    generation 0 (a start is no partner of its learner), before anything starts."""
+    """Refuse, before anything starts, a `pretrain.start_agent` whose start is a member of
+    the run's shipped generation 0 (a start is no partner of its learner), and PBT's with a
+    shipped population (its agents are copies of the start: it builds them)."""
     c = config
-    if zero.learner_start != "agent":
+    if c.pretrain.start_agent == "none" or zero.source == "resume":
         return
     folder = shipped.population_dir(c.pretrain.start_agent, c.seed)
     _, start = shipped.load(folder, c.seed, c.layout(), str(shipped.read(folder)["kind"]))
+    if c.strategy.origin.sets_learner and zero.source != "build":
+        raise shipped.PopulationError(
+            f"method {c.method} with pretrain.start_agent makes its agents copies of the "
+            "start: set pretrain.population: none"
+        )
     node = max(int(e["node"]) for e in start["members"].values())
     held = {e["state_sha256"] for e in (zero.manifest or {}).get("members", {}).values()}
     if any(e["state_sha256"] in held for e in start["members"].values()):

@@ -62,7 +62,16 @@ class PBT(Method):
         return ExploitExplore(config.pbt.quantile, config.pbt.perturb, o.lr, o.entropy_coef)
 
     def build_population(self, trainer: Trainer) -> Built:
-        start = trainer.config.pbt.start
+        c = trainer.config
+        if c.pretrain.start_agent != "none":  # the common start: its agents are copies of it
+            from hola_ray.methods.generation_zero import start_agent
+            from hola_ray.oracle.trainer import TrainStats
+
+            _, state, named = start_agent(c)
+            n = c.population.initial_size
+            untrained = TrainStats(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
+            return Built([state] * n, untrained, f"{n} agents, each a copy of {named}")
+        start = c.pbt.start
         how = "jointly (PBT's start)" if start == "mixed" else "each in self-play (PBT's start)"
         return pretrain_population(trainer, 0.0, how, start)
 

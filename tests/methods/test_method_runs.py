@@ -395,6 +395,14 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
     [weights] = started
     for name, value in r.load_member_state(last).items():
         assert (weights[LEARNER][name] == value).all(), name
+    # and PBT's agents, every one a copy of it
+    pbt_start = common | {"method": "pbt", "generations": 0}
+    said = train(pbt_start, tmp_path / "pbt-common", capsys)
+    assert f"3 agents, each a copy of tiny-s0's node {last} (member; the common start" in said
+    copies = RunDir(tmp_path / "pbt-common")
+    for node in range(3):
+        for name, value in r.load_member_state(last).items():
+            assert (copies.load_member_state(node)[name] == value).all(), (node, name)
 
     # PBT may seat MEP's members as its starting agents; generation 1 trains agent 0
     train(run | {"method": "pbt"}, tmp_path / "pbt", capsys)

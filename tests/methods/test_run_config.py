@@ -58,24 +58,24 @@ def test_a_method_without_a_population_takes_only_its_start_from_the_shipped_one
 
 def test_a_common_start_is_taken_by_every_method_but_never_from_a_partner(tmp_path):
     """`pretrain.start_agent` names a shipped population whose last node every method's
-    learner starts from (self-play included; PBT trains its own agents); one that is a
+    learner starts from (self-play included; PBT begins every agent as a copy); one that is a
     member of the run's own generation 0 is refused before anything starts."""
     from hola_ray.methods.generation_zero import resolve
     from hola_ray.population.rundir import RunDir
     from hola_ray.population.shipped import PopulationError
 
-    def config(start: str, **top) -> RunConfig:
-        return RunConfig.from_dict(
-            DEFAULT | top | {"pretrain": {**DEFAULT["pretrain"], "start_agent": start}}
-        )
+    def config(start: str, population: str = "mep-3v1-s0", **top) -> RunConfig:
+        pretrain = DEFAULT["pretrain"] | {"start_agent": start, "population": population}
+        return RunConfig.from_dict(DEFAULT | top | {"pretrain": pretrain})
 
     for method in ("hola", "sp", "uniform"):
         zero = resolve(config("fcp-3v1-s0", method=method), RunDir(tmp_path / method))
         assert zero.learner_start == "agent"
-    assert (
-        resolve(config("fcp-3v1-s0", method="pbt"), RunDir(tmp_path / "pbt")).learner_start
-        == "random"
-    )
+    # PBT builds its agents as copies of the start: never beside a shipped population
+    zero = resolve(config("fcp-3v1-s0", "none", method="pbt"), RunDir(tmp_path / "pbt"))
+    assert (zero.source, zero.learner_start) == ("build", "random")
+    with pytest.raises(PopulationError, match="set pretrain.population: none"):
+        resolve(config("fcp-3v1-s0", method="pbt"), RunDir(tmp_path / "pbt-shipped"))
     with pytest.raises(PopulationError, match="no partner of its learner"):
         resolve(config("mep-3v1-s0"), RunDir(tmp_path / "own"))
     with pytest.raises(PopulationError, match="no shipped population 'nowhere-3v1'"):
