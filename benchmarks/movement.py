@@ -1,12 +1,15 @@
 """How far learners move, how much seeds differ, and how many seeds a comparison needs.
 
     python benchmarks/movement.py EXPERIMENT_DIR [--a hola --b uniform] [--half-width 0.06]
-        [--key val_success] [--out DIR]
+        [--key val_success] [--with-start] [--out DIR]
 
 Reads every trial of an experiment directory (`trials/<method>-s<seed>/metrics.csv`) and,
 on the validation teammates only (never an evaluation pool: a pilot sizes a design):
 - each learner's curve, `--key` against generation (generations ≥ 1), and its least-squares
-  slope in points a generation with the slope's standard error;
+  slope in points a generation with the slope's standard error; with `--with-start`, the
+  common start (`pretrain.start_agent` of each trial's config) played with the same
+  validation teammates and episodes is the curve's generation 0, so movement counts from
+  where the learner began;
 - per method: the mean slope over seeds with a t-interval, the first and the last
   generation's figure, and the standard deviation between seeds of the last;
 - the controls of the paper's question, per trial: how many candidates joined the
@@ -78,6 +81,29 @@ def controls(folder: Path) -> dict[str, dict[str, dict[str, float]]]:
             "population_size": (column(rows, "population_size") or [math.nan])[-1],
             "phi_tv_max": max(tv) if tv else math.nan,
         }
+    return out
+
+
+def start_figures(folder: Path, key: str) -> dict[int, float]:
+    """seed → `key` of the trials' common start, played as a trial's validation plays its
+    learner (the seed's validation episodes); empty when the trials have no start."""
+    from hola_ray.methods.config import RunConfig
+    from hola_ray.methods.monitors import validation
+    from hola_ray.population import shipped
+
+    out: dict[int, float] = {}
+    for trial in sorted((folder / "trials").iterdir()):
+        match = TRIAL.match(trial.name)
+        if match is None or int(match["seed"]) in out or not (trial / "config.yaml").is_file():
+            continue
+        config = RunConfig.from_yaml(trial / "config.yaml")
+        if config.pretrain.start_agent == "none":
+            continue
+        folder_ = shipped.population_dir(config.pretrain.start_agent, config.seed)
+        manifest = shipped.read(folder_)
+        node = max(int(e["node"]) for e in manifest["members"].values())
+        export = shipped.RunDir(folder_).load_member_export(node)
+        out[config.seed] = validation(config, export)[key]
     return out
 
 
@@ -189,12 +215,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--b", default="uniform")
     parser.add_argument("--key", default="val_success")
     parser.add_argument("--half-width", type=float, default=0.06)
+    parser.add_argument(
+        "--with-start", action="store_true", help="the common start as generation 0 of each curve"
+    )
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
     found = curves(args.experiment, args.key)
     if not found:
         parser.error(f"{args.experiment}: no trial with {args.key} in its metrics.csv")
-    result = {"experiment": str(args.experiment), "key": args.key}
+    if args.with_start:
+        starts = start_figures(args.experiment, args.key)
+        for seeds in found.values():
+            for seed, points in seeds.items():
+                if seed in starts:
+                    points.insert(0, (0, starts[seed]))
+    result = {"experiment": str(args.experiment), "key": args.key, "with_start": args.with_start}
     result |= summarise(found, args.a, args.b, args.half_width)
     result["controls"] = controls(args.experiment)
     out = args.out or args.experiment

@@ -86,3 +86,34 @@ def test_controls_count_joins_and_the_largest_phi_departure(tmp_path):
     assert movement.controls(tmp_path) == {
         "hola": {"3": {"joined": 2.0, "population_size": 6.0, "phi_tv_max": 0.031}}
     }
+
+
+def test_with_start_the_common_start_is_each_curves_generation_zero(tmp_path, monkeypatch):
+    """`--with-start`: each seed's curve begins at its trials' common start, played with the
+    seed's validation episodes (the play replaced here: the wiring is what is tested), so
+    the slope counts from where the learners began."""
+    import yaml
+
+    from hola_ray.methods import monitors
+    from hola_ray.methods.config import RunConfig
+
+    config = RunConfig.from_yaml(Path(__file__).parents[2] / "configs" / "smoke.yaml")
+    played = []
+
+    def fake_validation(c, export):
+        played.append((c.seed, sorted(export)))
+        return {"val_success": 0.1 * c.seed}
+
+    monkeypatch.setattr(monitors, "validation", fake_validation)
+    for seed in (1, 2):
+        write_trial(tmp_path, f"hola-s{seed}", [0.5, 0.6])
+        data = config.to_dict() | {"seed": seed}
+        data["env"] = data["env"] | {"n_evaders": 1}
+        data["pretrain"] = data["pretrain"] | {"start_agent": "fcp-3v1-s0"}
+        (tmp_path / "trials" / f"hola-s{seed}" / "config.yaml").write_text(yaml.safe_dump(data))
+    assert movement.main([str(tmp_path), "--with-start"]) == 0
+    result = json.loads((tmp_path / "movement.json").read_text())
+    assert [s for s, _ in played] == [1, 2] and result["with_start"]
+    hola = result["methods"]["hola"]
+    assert hola["first"]["mean"] == pytest.approx(0.15)  # the starts, 0.1 and 0.2
+    assert hola["moved"]["mean"] == pytest.approx(0.6 - 0.15)
