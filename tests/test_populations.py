@@ -15,6 +15,9 @@ from hola_ray.populations import team_figures
 from hola_ray.run import DEFAULT
 
 SHIPPED = shipped.names()
+PARTNERS = [n for n in SHIPPED if not n.startswith("start-")]
+"""the partner populations; `start-*` are common starts (issue 47), not partners: one is
+below SPEC's bar on purpose (start-3v2-early, so that learners have room to move)"""
 GOALS = {"3v1": (0.85, 0.15), "3v2": (0.60, 0.35)}
 """Issue 35's goal for a shipped member as a team of its own copies: success ≥, collision ≤"""
 
@@ -29,7 +32,7 @@ def test_the_default_run_adopts_a_shipped_population_that_fits_it():
     assert (folder.generation(0) / "edges.json").is_file()
 
 
-@pytest.mark.parametrize("name", SHIPPED)
+@pytest.mark.parametrize("name", PARTNERS)
 def test_every_shipped_member_pursues_as_a_team_of_its_copies(name):
     """Issue 35's success goal for a shipped member as copies (≥ 85 % at 3 vs 1, ≥ 60 % at
     3 vs 2) on ≥ 300 recorded episodes. Its collision goal (≤ 15 %, ≤ 35 %) is not asserted:
