@@ -119,7 +119,7 @@ def test_each_trial_is_the_base_with_the_experiment_and_method_overrides(tmp_pat
         )
     )
     exp = Experiment.from_yaml(path)
-    assert exp.trials() == ["hola-s4", "hola-s5", "sp-s4", "sp-s5"]
+    assert exp.trials() == ["hola-s4", "sp-s4", "hola-s5", "sp-s5"]  # seed by seed
     sp = exp.run_config("sp-s5")
     assert (sp.method, sp.seed, sp.generations, sp.oracle.lr) == ("sp", 5, 3, 1e-3)
     assert sp.oracle.train_batch == 1000 and sp.env.n_evaders == 1 and sp.env.horizon == 200
@@ -136,7 +136,7 @@ def test_a_pilot_is_trained_only(tmp_path):
     path.write_text(yaml.safe_dump(raw | {"seeds": [0, 1], "evaluation": "none"}))
     exp = Experiment.from_yaml(path)
     assert exp.evaluation is None and exp.pairs() == [("hola", "uniform")]
-    assert exp.trials() == ["hola-s0", "hola-s1", "uniform-s0", "uniform-s1"]
+    assert exp.trials() == ["hola-s0", "uniform-s0", "hola-s1", "uniform-s1"]
     pilot = Experiment.from_yaml(ROOT / "configs" / "experiments" / "pilot-3v2.yaml")
     assert pilot.evaluation is None and len(pilot.seeds) == 4
     config = pilot.run_config("uniform-s3")

@@ -142,8 +142,10 @@ class Experiment:
         return out + [p for p in more if p not in out]
 
     def trials(self) -> list[str]:
-        """Trial names, method by method: `<method>-s<seed>`."""
-        return [trial_name(m, s) for m in self.methods for s in self.seeds]
+        """Trial names, seed by seed (`<method>-s<seed>`): an experiment stopped part way
+        through holds whole seeds, every method's trial of each, which is what a paired
+        comparison reads."""
+        return [trial_name(m, s) for s in self.seeds for m in self.methods]
 
     def run_config(self, trial: str) -> RunConfig:
         method, seed = parse_trial(trial)
