@@ -159,6 +159,7 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     check, a build resumes from the members saved at the first; never competent (success
     1.0 asked), it trains to the cap and metrics.csv says so."""
     from hola_ray.methods import base
+    from hola_ray.oracle.trainer import Oracle
 
     smoke = yaml.safe_load(SMOKE.read_text())
     until = {"env_steps": 4000, "check_every": 1000, "until_episodes": 6}
@@ -166,17 +167,17 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
 
     # pretrain.alpha_until: the bonus for the first 1,000 env steps, then α 0 on the weights
     alphas: list[float] = []
-    real_oracle_init = base.Oracle.__init__
+    real_oracle_init = Oracle.__init__
 
     def seen(self, env, config, seating, seed):
         alphas.append(seating.mep_alpha)
         real_oracle_init(self, env, config, seating, seed)
 
-    monkeypatch.setattr(base.Oracle, "__init__", seen)
+    monkeypatch.setattr(Oracle, "__init__", seen)
     annealed = never | {"alpha": 0.05, "alpha_until": 1000}
     said = train(smoke | {"generations": 0, "pretrain": annealed}, tmp_path / "anneal", capsys)
     assert alphas == [0.05, 0.0] and "pre-train: α 0 from 1," in said
-    monkeypatch.setattr(base.Oracle, "__init__", real_oracle_init)
+    monkeypatch.setattr(Oracle, "__init__", real_oracle_init)
 
     judged = []
     real = base.members_as_copies
@@ -211,7 +212,7 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     assert run.completed() == [] and 1000 <= progress["env_steps"] < 2000
     seated: list[dict] = []
     monkeypatch.setattr(base, "members_as_copies", real)
-    monkeypatch.setattr(base.Oracle, "set_trained_weights", lambda self, w: seated.append(dict(w)))
+    monkeypatch.setattr(Oracle, "set_trained_weights", lambda self, w: seated.append(dict(w)))
     said = train(smoke | {"generations": 0, "pretrain": never}, tmp_path / "stopped", capsys)
     assert f"pre-train: resumed after {progress['env_steps']:,} env steps" in said
     assert said.count("members as copies: success") == 1  # only the check after the resume
