@@ -88,8 +88,8 @@ def start_figures(folder: Path, key: str) -> dict[int, float]:
     """seed → `key` of the trials' common start, played as a trial's validation plays its
     learner (the seed's validation episodes); empty when the trials have no start."""
     from hola_ray.methods.config import RunConfig
+    from hola_ray.methods.generation_zero import start_member
     from hola_ray.methods.monitors import validation
-    from hola_ray.population import shipped
 
     out: dict[int, float] = {}
     for trial in sorted((folder / "trials").iterdir()):
@@ -99,11 +99,8 @@ def start_figures(folder: Path, key: str) -> dict[int, float]:
         config = RunConfig.from_yaml(trial / "config.yaml")
         if config.pretrain.start_agent == "none":
             continue
-        folder_ = shipped.population_dir(config.pretrain.start_agent, config.seed)
-        manifest = shipped.read(folder_)
-        node = max(int(e["node"]) for e in manifest["members"].values())
-        export = shipped.RunDir(folder_).load_member_export(node)
-        out[config.seed] = validation(config, export)[key]
+        donor, _, entry = start_member(config)
+        out[config.seed] = validation(config, donor.load_member_export(entry["node"]))[key]
     return out
 
 

@@ -166,14 +166,19 @@ def starting_member(
     return None
 
 
-def start_agent(config: RunConfig) -> tuple[int, dict[str, Any], str]:
-    """The last node of the shipped population `pretrain.start_agent`, verified as a
-    shipped population is (`check_start` has refused it if a partner holds it): the node,
-    its RLlib state and a phrase naming it."""
+def start_member(config: RunConfig) -> tuple[RunDir, dict[str, Any], dict[str, Any]]:
+    """The shipped population `pretrain.start_agent`, verified as a shipped population is,
+    its manifest and the manifest's entry of its last node (the start)."""
     c = config
     folder = shipped.population_dir(c.pretrain.start_agent, c.seed)
     donor, manifest = shipped.load(folder, c.seed, c.layout(), str(shipped.read(folder)["kind"]))
-    entry = max(manifest["members"].values(), key=lambda e: int(e["node"]))
+    return donor, manifest, max(manifest["members"].values(), key=lambda e: int(e["node"]))
+
+
+def start_agent(config: RunConfig) -> tuple[int, dict[str, Any], str]:
+    """The common start (`start_member`; `check_start` has refused it if a partner holds
+    it): its node, its RLlib state and a phrase naming it."""
+    donor, manifest, entry = start_member(config)
     node = int(entry["node"])
     named = (
         f"{donor.root.name}'s node {node} ({entry['role']}; the common start, built at "
@@ -189,20 +194,18 @@ def check_start(config: RunConfig, zero: GenerationZero) -> None:
     c = config
     if c.pretrain.start_agent == "none" or zero.source == "resume":
         return
-    folder = shipped.population_dir(c.pretrain.start_agent, c.seed)
-    _, start = shipped.load(folder, c.seed, c.layout(), str(shipped.read(folder)["kind"]))
+    donor, start, entry = start_member(c)
     if c.strategy.origin.sets_learner and zero.source != "build":
         raise shipped.PopulationError(
             f"method {c.method} with pretrain.start_agent makes its agents copies of the "
             "start: set pretrain.population: none"
         )
-    node = max(int(e["node"]) for e in start["members"].values())
     held = {e["state_sha256"] for e in (zero.manifest or {}).get("members", {}).values()}
     if any(e["state_sha256"] in held for e in start["members"].values()):
         raise shipped.PopulationError(
-            f"pretrain.start_agent {folder.name}: a member of it (node {node} is the start) "
-            f"is in this run's generation 0, {Path(zero.donor or '').name}; a start must be "
-            "no partner of its learner"
+            f"pretrain.start_agent {donor.root.name}: a member of it (node {entry['node']} is "
+            f"the start) is in this run's generation 0, {Path(zero.donor or '').name}; a start "
+            "must be no partner of its learner"
         )
 
 

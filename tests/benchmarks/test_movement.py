@@ -96,8 +96,9 @@ def test_with_start_the_common_start_is_each_curves_generation_zero(tmp_path, mo
 
     from hola_ray.methods import monitors
     from hola_ray.methods.config import RunConfig
+    from hola_ray.run import DEFAULT
 
-    config = RunConfig.from_yaml(Path(__file__).parents[2] / "configs" / "smoke.yaml")
+    config = RunConfig.from_dict(DEFAULT)  # fcp-3v1-s0 (the start) fits its layout
     played = []
 
     def fake_validation(c, export):
@@ -108,7 +109,6 @@ def test_with_start_the_common_start_is_each_curves_generation_zero(tmp_path, mo
     for seed in (1, 2):
         write_trial(tmp_path, f"hola-s{seed}", [0.5, 0.6])
         data = config.to_dict() | {"seed": seed}
-        data["env"] = data["env"] | {"n_evaders": 1}
         data["pretrain"] = data["pretrain"] | {"start_agent": "fcp-3v1-s0"}
         (tmp_path / "trials" / f"hola-s{seed}" / "config.yaml").write_text(yaml.safe_dump(data))
     assert movement.main([str(tmp_path), "--with-start"]) == 0
