@@ -1,0 +1,70 @@
+"""benchmarks/cost_model.py: measured runs → a trial's cost and an experiment's wall time."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).parents[2]
+_spec = importlib.util.spec_from_file_location("cost_model", ROOT / "benchmarks" / "cost_model.py")
+cost_model = importlib.util.module_from_spec(_spec)
+sys.modules["cost_model"] = cost_model  # its dataclass looks its module up
+_spec.loader.exec_module(cost_model)
+
+
+def write_run(folder: Path, method: str, rows: list[dict]) -> Path:
+    folder.mkdir(parents=True)
+    (folder / "config.yaml").write_text(yaml.safe_dump({"method": method}))
+    keys = sorted({k for r in rows for k in r})
+    with open(folder / "metrics.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, keys)
+        w.writeheader()
+        w.writerows(rows)
+    return folder
+
+
+def test_a_measured_run_in_reference_seconds(tmp_path):
+    run = write_run(
+        tmp_path / "hola",
+        "hola",
+        [
+            {"generation": 0, "wall_s": 30, "time_process_s": 10, "pretrain_env_steps": 1000},
+            {"generation": 1, "wall_s": 20, "learner_samples": 100},
+            {"generation": 2, "wall_s": 40, "learner_samples": 300},
+        ],
+    )
+    m = cost_model.Measured.read(run, calib=0.5)
+    assert (m.start_s, m.zero_s, m.pretrain_env_steps) == (5.0, 10.0, 1000.0)
+    assert (m.generation_s, m.samples_per_generation) == (15.0, 150.0)
+
+
+def test_an_experiment_costed_from_a_run_and_scheduled_on_nodes(tmp_path):
+    run = write_run(
+        tmp_path / "hola",
+        "hola",
+        [
+            {"generation": 0, "wall_s": 100, "pretrain_env_steps": 50_000},
+            {"generation": 1, "wall_s": 60, "learner_samples": 100_000},
+        ],
+    )
+    measured = [cost_model.Measured.read(run, calib=1.0)]
+    exp = ROOT / "configs" / "experiments" / "laptop-3v2.yaml"  # 7 methods × 3 seeds
+    out = cost_model.model(exp, measured, node_cpus=4, nodes=[1, 2])
+    by = {t["trial"]: t for t in out["trials"]}
+    # hola pre-trains 1 M env steps (20 × the measured 50 k), 6 generations of 100 k
+    assert by["hola-s0"]["generation_0_s"] == pytest.approx(100 * 20)
+    assert by["hola-s0"]["generations_s"] == pytest.approx(6 * 60)
+    assert by["sp-s0"]["generation_0_s"] == 0.0  # self-play trains no population
+    assert out["trials_side_by_side"] == {"1": 2, "2": 4}  # 2 CPUs a trial
+    assert out["wall_hours"]["2"] < out["wall_hours"]["1"] <= out["trial_hours_sum"]
+
+
+def test_waves_schedule_the_longest_first():
+    assert cost_model.waves([3, 3, 2, 2, 2], 2) == 7  # 3 + 2 + 2 on one slot, 3 + 2 on the other
+    assert cost_model.waves([5, 1, 1, 1], 2) == 5
+    assert cost_model.waves([], 3) == 0
