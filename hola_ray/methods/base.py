@@ -169,7 +169,8 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
     `pretrain.env_steps`; with `pretrain.until_success`, judged every `check_every` env
     steps as teams of their own copies and stopped once every member is competent. After
     each check the members are saved in the run directory (`RunDir.save_pretrain`): a
-    stopped build resumes from its last check, with a fresh optimizer and sampler."""
+    stopped build resumes from its last check, with a fresh optimizer and sampler and its
+    learning rate's schedule (`oracle.lr_decay_env_steps`) as far on as the check."""
     from hola_ray.oracle.trainer import Oracle
 
     c = trainer.config
@@ -193,6 +194,7 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
     mep = oracle(0.0 if bonus_ends(done) else alpha)
     if saved is not None:
         mep.set_trained_weights(states)
+        mep.start_schedules_at(done)  # a decaying lr goes on from the check
         metrics["pretrain_resumed_at"] = done
         trainer.say(f"pre-train: resumed after {done:,} env steps ({trainer.run.pretrain})")
     resumed = done
@@ -203,6 +205,7 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
                 mep.stop()
                 mep = oracle(0.0)
                 mep.set_trained_weights(states)
+                mep.start_schedules_at(done)
                 trainer.say(f"pre-train: α 0 from {done:,} env steps on (pretrain.alpha_until)")
             budget = min(p.check_every, p.env_steps - done) if p.until else p.env_steps - done
             if bonus_ends(p.alpha_until) and done < p.alpha_until:

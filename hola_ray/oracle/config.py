@@ -44,8 +44,9 @@ class OracleConfig:
     """Adam learning rate (at the start, when it decays)"""
     lr_decay_env_steps: int = 0
     """> 0: the learning rate falls linearly from `lr` to `lr_final` over this many env
-    steps the Oracle samples (counted from its start: a resumed run starts the schedule
-    anew), then stays there (RLlib's piecewise-linear lr schedule); 0 = constant"""
+    steps the Oracle samples (a resumed run, and a build resumed from its last check, go
+    on where they stopped), then stays there (RLlib's piecewise-linear lr schedule);
+    0 = constant"""
     lr_final: float = 0.0
     """the learning rate the decay ends at (with `lr_decay_env_steps`)"""
     gamma: float = 0.99

@@ -364,6 +364,17 @@ class OracleLearner(PPOTorchLearner):
         self.curr_kl_coeffs_per_module[module_id].data.fill_(state["kl_coeff"])
         self._env_steps_before = int(env_steps)
 
+    def start_schedules_at(self, env_steps: int) -> None:
+        """The schedules (the learning rate's) `env_steps` in, with fresh optimizers: a
+        stopped build resumed from its last check, whose decay goes on from there."""
+        self._env_steps_before = int(env_steps)
+        for names in self._module_optimizers.values():
+            for name in names:
+                optimizer = self._named_optimizers[name]
+                schedule = self._optimizer_lr_schedules.get(optimizer)
+                if schedule is not None:
+                    self._set_optimizer_lr(optimizer, lr=schedule.update(timestep=env_steps))
+
     def reseed(self, words: Sequence[int]) -> None:
         """This process's global generators (the minibatches' shuffles) from `words`."""
         from hola_ray.process import seed_torch

@@ -451,6 +451,13 @@ class Oracle:
         steps = int(self.algo.metrics.peek(key, default=0))
         return first | {"env_steps": self._env_steps_before + steps}
 
+    def start_schedules_at(self, env_steps: int) -> None:
+        """Fresh optimizers whose schedules go on `env_steps` in (a resumed build)."""
+        self._env_steps_before = int(env_steps)
+        self.algo.learner_group.foreach_learner(
+            lambda learner: learner.start_schedules_at(env_steps)
+        )
+
     def set_training_state(self, state: Mapping[str, Any]) -> None:
         """Take up a saved `training_state` (on resume), on every learner."""
         self._env_steps_before = int(state["env_steps"])

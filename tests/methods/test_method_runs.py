@@ -205,16 +205,34 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
         return judged[-1]
 
     monkeypatch.setattr(base, "members_as_copies", stopped)
+    # with a learning rate decaying over the build: the resumed build's goes on from the check
+    lr, schedule = 1e-3, {"lr_decay_env_steps": 2000, "lr_final": 0.0}
+    decaying = smoke | {"oracle": smoke["oracle"] | schedule | {"lr": lr}}
     with pytest.raises(KeyboardInterrupt):
-        train(smoke | {"generations": 0, "pretrain": never}, tmp_path / "stopped", capsys)
+        train(decaying | {"generations": 0, "pretrain": never}, tmp_path / "stopped", capsys)
     run = RunDir(tmp_path / "stopped")
     states, progress = run.load_pretrain()
     assert run.completed() == [] and 1000 <= progress["env_steps"] < 2000
     seated: list[dict] = []
     monkeypatch.setattr(base, "members_as_copies", real)
     monkeypatch.setattr(Oracle, "set_trained_weights", lambda self, w: seated.append(dict(w)))
-    said = train(smoke | {"generations": 0, "pretrain": never}, tmp_path / "stopped", capsys)
+    rates: list[list[float]] = []
+    real_start = Oracle.start_schedules_at
+
+    def start_at(self, env_steps):
+        real_start(self, env_steps)
+        for r in self.algo.learner_group.foreach_learner(
+            lambda learner: [learner._get_optimizer_lr(o) for o in learner._optimizer_lr_schedules]
+        ):
+            rates.append(r.get())
+
+    monkeypatch.setattr(Oracle, "start_schedules_at", start_at)
+    said = train(decaying | {"generations": 0, "pretrain": never}, tmp_path / "stopped", capsys)
     assert f"pre-train: resumed after {progress['env_steps']:,} env steps" in said
+    # every member's optimizer at lr · (1 − done / 2000), not back at lr
+    (members,) = rates
+    assert len(members) == smoke["population"]["initial_size"]
+    assert members == pytest.approx([lr * (1 - progress["env_steps"] / 2000)] * len(members))
     assert said.count("members as copies: success") == 1  # only the check after the resume
     assert [sorted(w) for w in seated] == [sorted(states)]
     for mid, state in states.items():
