@@ -83,6 +83,29 @@ def test_a_command_leaves_with_its_code_and_every_object_frozen():
         gc.unfreeze()
 
 
+def test_a_finished_command_shuts_its_ray_down_before_ray_s_exit_hook(monkeypatch):
+    """After a success `leave` shuts Ray down itself (Ray's exit hook would sleep 0.5 s
+    first); after a failure it leaves Ray's hook to do it, with the workers' last lines."""
+    import gc
+    import sys
+    from types import SimpleNamespace
+
+    import pytest
+
+    from hola_ray.process import leave
+
+    calls: list[str] = []
+    ray = SimpleNamespace(is_initialized=lambda: True, shutdown=lambda: calls.append("shut"))
+    monkeypatch.setitem(sys.modules, "ray", ray)
+    try:
+        for code, shut in ((1, []), (0, ["shut"])):
+            with pytest.raises(SystemExit):
+                leave(code)
+            assert calls == shut
+    finally:
+        gc.unfreeze()
+
+
 def test_the_cluster_workers_setup_hook_names_a_function_that_exists():
     """Workers on a cluster's nodes (and a local Ray started without a fixed hash seed) run
     `RAY_RUNTIME_ENV`'s setup hook first: a name that does not import makes every worker
