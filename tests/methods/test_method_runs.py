@@ -72,6 +72,32 @@ def test_self_play_run_seats_one_learner_and_keeps_its_best(tmp_path, capsys):
     assert status.main([str(out), "--plot"]) == 0
 
 
+def test_random_weights_are_one_start_for_every_method_of_a_seed():
+    """`pretrain.learner_start: random` is a common start (issue 47): at one seed the
+    learner's initial weights are the same whichever method seats it (self-play, partners
+    drawn by φ, FCP's larger population), and another seed's differ."""
+    import numpy as np
+
+    from hola_ray.oracle import LEARNER
+
+    smoke = yaml.safe_load(SMOKE.read_text())
+    fcp = {"method": "fcp", "population": smoke["population"] | {"max_size": 6}}
+    starts = {}
+    for name, patch in [("hola", {}), ("sp", {"method": "sp"}), ("fcp", fcp), ("s1", {"seed": 1})]:
+        c = RunConfig.from_dict(smoke | patch)
+        oracle = c.strategy.make_oracle(c)
+        try:
+            starts[name] = oracle.weights([LEARNER])[LEARNER]
+        finally:
+            oracle.stop()
+
+    def same(a, b):
+        return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+
+    assert same(starts["hola"], starts["sp"]) and same(starts["hola"], starts["fcp"])
+    assert not same(starts["hola"], starts["s1"])
+
+
 @pytest.mark.parametrize("method", ["fcp", "mep"])
 def test_best_response_methods_keep_their_population_fixed(tmp_path, capsys, method, mep_zero):
     """fcp: the population is two self-play agents' start, middle and end checkpoints;
