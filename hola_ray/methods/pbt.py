@@ -25,6 +25,10 @@ if TYPE_CHECKING:
     from hola_ray.oracle.trainer import Oracle
 
 
+RANDOM = "random"
+"""`pbt.start`: the agents are copies of the learner's random weights, untrained"""
+
+
 @dataclass(frozen=True)
 class PBTConfig:
     """Population-based training's exploit and explore (method pbt). Each generation
@@ -39,7 +43,10 @@ class PBTConfig:
     start: str = "mixed"
     """how the initial agents train (generation 0, no entropy bonus): mixed, jointly in
     teams drawn from all of them (PBT's start); self-play, each in its own copies' team
-    (the shipped pbt populations: competent agents, as MEP's self-play scheme at α 0)"""
+    (the shipped pbt populations: competent agents, as MEP's self-play scheme at α 0);
+    random, none: each a copy of the learner's random weights at the run's seed, the
+    weights every other method's learner starts from (`pretrain.learner_start: random`),
+    so that PBT shares a comparison's common random start"""
 
     def validate(self) -> None:
         finite_in("pbt", self, "quantile", 0.01, 0.5, "in [0.01, 0.5]")
@@ -47,9 +54,8 @@ class PBTConfig:
             isinstance(f, int | float) and 0 < f < 10 for f in self.perturb
         )
         require(ok, "pbt.perturb", "a non-empty list of factors in (0, 10)", self.perturb)
-        require(
-            self.start in PRETRAIN_SCHEMES, "pbt.start", " or ".join(PRETRAIN_SCHEMES), self.start
-        )
+        starts = (*PRETRAIN_SCHEMES, RANDOM)
+        require(self.start in starts, "pbt.start", " or ".join(starts), self.start)
 
 
 class PBT(Method):
@@ -57,23 +63,44 @@ class PBT(Method):
     origin: ClassVar[Origin] = Origin(kind="pbt", also=("mep",), sets_learner=True)
     """also: MEP's members, trained with its entropy bonus, as the agents PBT starts from"""
 
+    def validate(self, config: RunConfig) -> None:
+        if config.pbt.start != RANDOM:
+            return
+        p = config.pretrain
+        require(
+            p.population == "none" and p.start_agent == "none",
+            "pbt.start",
+            "not random with a population or a start agent (random builds its agents: "
+            "pretrain.population and pretrain.start_agent none)",
+            config.pbt.start,
+        )
+
     def rules(self, config: RunConfig) -> ExploitExplore:
         o = config.oracle
         return ExploitExplore(config.pbt.quantile, config.pbt.perturb, o.lr, o.entropy_coef)
 
     def build_population(self, trainer: Trainer) -> Built:
         c = trainer.config
+        n = c.population.initial_size
         if c.pretrain.start_agent != "none":  # the common start: its agents are copies of it
             from hola_ray.methods.generation_zero import start_agent
-            from hola_ray.oracle.trainer import TrainStats
 
             _, state, named = start_agent(c)
-            n = c.population.initial_size
-            untrained = TrainStats(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
-            return Built([state] * n, untrained, f"{n} agents, each a copy of {named}")
-        start = c.pbt.start
-        how = "jointly (PBT's start)" if start == "mixed" else "each in self-play (PBT's start)"
-        return pretrain_population(trainer, 0.0, how, start)
+        elif c.pbt.start == RANDOM:  # the common random start: any method's learner's weights
+            oracle = self.make_oracle(c)
+            try:
+                state = oracle.weights([LEARNER])[LEARNER]
+            finally:
+                oracle.stop()
+            named = f"the learner's random weights at seed {c.seed}"
+        else:
+            mixed = c.pbt.start == "mixed"
+            how = "jointly (PBT's start)" if mixed else "each in self-play (PBT's start)"
+            return pretrain_population(trainer, 0.0, how, c.pbt.start)
+        from hola_ray.oracle.trainer import TrainStats
+
+        untrained = TrainStats(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
+        return Built([state] * n, untrained, f"{n} agents, each a copy of {named}")
 
     def before_training(self, trainer: Trainer, g: int, oracle: Oracle) -> int:
         """Generation g trains agent (g − 1) mod K: its weights go into the learner, which

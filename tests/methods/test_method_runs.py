@@ -72,10 +72,11 @@ def test_self_play_run_seats_one_learner_and_keeps_its_best(tmp_path, capsys):
     assert status.main([str(out), "--plot"]) == 0
 
 
-def test_random_weights_are_one_start_for_every_method_of_a_seed():
+def test_random_weights_are_one_start_for_every_method_of_a_seed(tmp_path, capsys):
     """`pretrain.learner_start: random` is a common start (issue 47): at one seed the
     learner's initial weights are the same whichever method seats it (self-play, partners
-    drawn by φ, FCP's larger population), and another seed's differ."""
+    drawn by φ, FCP's larger population), and another seed's differ; PBT's agents, with
+    `pbt.start: random`, are each a copy of them."""
     import numpy as np
 
     from hola_ray.oracle import LEARNER
@@ -96,6 +97,12 @@ def test_random_weights_are_one_start_for_every_method_of_a_seed():
 
     assert same(starts["hola"], starts["sp"]) and same(starts["hola"], starts["fcp"])
     assert not same(starts["hola"], starts["s1"])
+    pbt = {"method": "pbt", "generations": 0, "pbt": {"start": "random"}}
+    said = train(smoke | pbt, tmp_path / "pbt", capsys)
+    assert "3 agents, each a copy of the learner's random weights at seed 0" in said
+    run = RunDir(tmp_path / "pbt")
+    agents = [run.load_member_state(v) for v in range(smoke["population"]["initial_size"])]
+    assert all(same(a, starts["hola"]) for a in agents)
 
 
 @pytest.mark.parametrize("method", ["fcp", "mep"])

@@ -98,6 +98,11 @@ def test_a_common_start_is_taken_by_every_method_but_never_from_a_partner(tmp_pa
         ({"pretrain": {"learner_start": "best"}}, r"learner_start must be random or member"),
         ({"pretrain": {"alpha_until": -1}}, r"pretrain.alpha_until must be an integer >= 0"),
         ({"pretrain": {"start_agent": ""}}, r"pretrain.start_agent must be none or a shipped"),
+        ({"pbt": {"start": "copies"}}, r"pbt.start must be self-play or mixed or random"),
+        (
+            {"method": "pbt", "pbt": {"start": "random"}, "pretrain": {"population": "pbt-3v1-s0"}},
+            r"pbt.start must be not random with a population or a start agent",
+        ),
         # absurd sizes: typos, not runs
         ({"oracle": {"hidden": [10**9]}}, r"oracle.hidden must be a list of at most 16"),
         ({"oracle": {"envs_per_runner": 10**8}}, r"envs_per_runner must be an integer in \[1,"),
