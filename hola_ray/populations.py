@@ -1,6 +1,6 @@
 """Competent populations, built once and shipped like the pools (SPEC §5).
 
-    python -m hola_ray.populations build NAME [--episodes 500] [--quiet]
+    python -m hola_ray.populations build NAME [--episodes 500] [--quiet] [--carry]
     python -m hola_ray.populations show [NAME]
 
 `build` trains generation 0 of `configs/populations/NAME.yaml` (a run config with
@@ -12,11 +12,20 @@ and writes `pools/populations/NAME/`: the members' exports and RLlib states, gen
 member's role and team figures, and the commit, config and seed that built it. A run takes
 it with `pretrain.population: NAME` (`{seed}` in the name is the run's seed); what loading
 checks is `hola_ray.population.shipped`. `show` verifies and prints them.
+
+A build that outlasts its machine: with `--carry`, every check a build saves (its members
+and progress, `RunDir.save_pretrain`) is mirrored to `pools/builds/NAME/`, a few hundred kB
+to commit, and a build that finds there a later check than its own run directory's starts
+from it; once the population is shipped the carried check is removed.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import shutil
 import sys
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +45,9 @@ from hola_ray.provenance import commit_id
 
 CONFIGS = homes.CONFIGS / "populations"
 RUNS = homes.RUNS / "populations"
+BUILDS = homes.POOLS / "builds"
+"""where `build --carry` keeps each build's last check, to commit between machines"""
+PROGRESS = "progress.json"
 FIGURES_SEED = 9_100_000
 """the run seed of the episodes each member is judged on as a team of its own copies"""
 
@@ -56,8 +68,79 @@ def team_figures(config: Any, export: dict[str, Any], episodes: int) -> dict[str
     }
 
 
-def build(name: str, episodes: int, progress: bool = True) -> Path:
-    """Train (or resume) generation 0 of the population's config, then package it."""
+def checked_env_steps(folder: Path) -> int:
+    """The env steps of the check saved in `folder` (a run's `pretrain/` or a carried
+    build), -1 where there is none."""
+    path = folder / PROGRESS
+    return int(json.loads(path.read_text())["env_steps"]) if path.is_file() else -1
+
+
+def copy_check(source: Path, target: Path) -> bool:
+    """Copy the check in `source` to `target` when `target` has none or an earlier one: the
+    members' arrays first, each written whole, and the progress that names them last, so a
+    copy stopped part way leaves the earlier check whole. True when it copied."""
+    if checked_env_steps(source) <= checked_env_steps(target):
+        return False
+    progress = (source / PROGRESS).read_text()
+    target.mkdir(parents=True, exist_ok=True)
+    for mid in json.loads(progress)["members"]:
+        shutil.copyfile(source / f"{mid}.npz", target / f".tmp_{mid}.npz")
+        os.replace(target / f".tmp_{mid}.npz", target / f"{mid}.npz")
+    (target / f".tmp_{PROGRESS}").write_text(progress)
+    os.replace(target / f".tmp_{PROGRESS}", target / PROGRESS)
+    return True
+
+
+class Carry:
+    """`build --carry`: the run's `pretrain/` check mirrored to `pools/builds/NAME/` from a
+    thread, polled every `every` seconds and once more at the end."""
+
+    def __init__(self, name: str, pretrain: Path, every: float = 5.0) -> None:
+        self.name, self.pretrain, self.folder = name, pretrain, BUILDS / name
+        self.every, self.stop = every, threading.Event()
+        self.thread = threading.Thread(target=self.watch, name="carry", daemon=True)
+
+    def restore(self) -> None:
+        """Start from the carried check where it is later than the run directory's."""
+        if copy_check(self.folder, self.pretrain):
+            print(
+                f"[{self.name}] resuming from the carried check at "
+                f"{checked_env_steps(self.pretrain):,} env steps ({self.folder})",
+                flush=True,
+            )
+
+    def mirror(self) -> None:
+        if copy_check(self.pretrain, self.folder):
+            print(
+                f"[{self.name}] check at {checked_env_steps(self.folder):,} env steps carried "
+                f"to {self.folder} (commit it to keep it past this machine)",
+                flush=True,
+            )
+
+    def watch(self) -> None:
+        while not self.stop.wait(self.every):
+            self.mirror()
+
+    def __enter__(self) -> Carry:
+        self.restore()
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop.set()
+        self.thread.join()
+        self.mirror()
+
+    def shipped(self) -> None:
+        """The population is packaged: its carried check has served."""
+        if self.folder.is_dir():
+            shutil.rmtree(self.folder)
+            print(f"[{self.name}] the build is shipped: {self.folder} removed", flush=True)
+
+
+def build(name: str, episodes: int, progress: bool = True, carry: bool = False) -> Path:
+    """Train (or resume) generation 0 of the population's config, then package it; with
+    `carry`, its checks mirrored to and resumed from `pools/builds/NAME/` (`Carry`)."""
     import ray
 
     from hola_ray.methods.config import RunConfig
@@ -78,7 +161,12 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
     if not ray.is_initialized():
         init_local_ray(namespace=NAMESPACE)
     run = RunDir(RUNS / name)
-    Trainer(config, run.root, progress=progress).fit()
+    carried = Carry(name, run.pretrain) if carry else None
+    if carried is None:
+        Trainer(config, run.root, progress=progress).fit()
+    else:
+        with carried:
+            Trainer(config, run.root, progress=progress).fit()
     state = run.read_json(0, "state.json")
     nodes = sorted(int(v) for v in state["population"]["slots"].values())
     figures = {}
@@ -90,6 +178,11 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
             flush=True,
         )
     gen0 = run.metrics(0)
+    built = {
+        k: gen0[k] for k in ("pretrain_env_steps", "pretrain_s", "pretrain_competent") if k in gen0
+    }
+    if run.pretrain.joinpath(PROGRESS).is_file():  # every check up to the last one saved
+        built["checks"] = json.loads(run.pretrain.joinpath(PROGRESS).read_text()).get("checks", [])
     out = POPULATIONS_DIR / name
     package(
         run.root,
@@ -103,16 +196,14 @@ def build(name: str, episodes: int, progress: bool = True) -> Path:
             "config_values": config.to_dict(),
             "seed": config.seed,
             "method": config.method,
-            "built": {
-                k: gen0[k]
-                for k in ("pretrain_env_steps", "pretrain_s", "pretrain_competent")
-                if k in gen0
-            },
+            "built": built,
         },
         roles=config.strategy.member_roles(nodes),
         figures=figures,
         scenario=f"{config.env.n_pursuers}v{config.env.n_evaders}",
     )
+    if carried is not None:
+        carried.shipped()
     return out
 
 
@@ -145,12 +236,17 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("name")
     b.add_argument("--episodes", type=int, default=500, help="episodes per member as copies")
     b.add_argument("--quiet", action="store_true")
+    b.add_argument(
+        "--carry",
+        action="store_true",
+        help="mirror each check to pools/builds/NAME (commit it) and resume from it",
+    )
     s = sub.add_parser("show", help="a shipped population's members, roles and figures")
     s.add_argument("name", nargs="?", default=None, help="default: every shipped one")
     args = parser.parse_args(argv)
     try:
         if args.command == "build":
-            folder = build(args.name, args.episodes, not args.quiet)
+            folder = build(args.name, args.episodes, not args.quiet, args.carry)
             print(f"population {args.name} written to {folder}")
             print(show(folder))
         else:

@@ -93,3 +93,52 @@ def test_a_population_name_takes_the_runs_seed_and_its_methods_kind(tmp_path, mo
     # N builds shared by the seeds: seed 4 sits on build 4 mod 3
     assert shipped.population_dir("{kind}-3v1-s{seed%3}", 4, "mep") == tmp_path / "mep-3v1-s1"
     assert shipped.population_dir("mep-3v1-s{seed%3}", 1) == tmp_path / "mep-3v1-s1"
+
+
+def test_a_carried_check_outlasts_its_machine(tmp_path, monkeypatch):
+    """`build --carry`: each check the build saves is mirrored to pools/builds/NAME while it
+    trains; a build on a fresh machine (no run directory) starts from the carried check, a
+    carried check never overwrites a later one of the run's own, and shipping removes it."""
+    import json
+    import time
+
+    import numpy as np
+
+    from hola_ray import populations
+    from hola_ray.population.rundir import RunDir
+
+    monkeypatch.setattr(populations, "BUILDS", tmp_path / "builds")
+    members = ["mep_0", "mep_1"]
+
+    def check(run: RunDir, env_steps: int) -> None:
+        states = {m: {"w": np.full(3, env_steps + i, np.float32)} for i, m in enumerate(members)}
+        run.save_pretrain(states, {"members": members, "env_steps": env_steps, "judge_s": 1.0})
+
+    machine = RunDir(tmp_path / "machine-1")
+    carry = populations.Carry("tiny", machine.pretrain, every=0.01)
+    with carry:  # the build trains: two checks, each mirrored while it runs
+        check(machine, 1000)
+        deadline = time.monotonic() + 10
+        while populations.checked_env_steps(carry.folder) < 1000 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert populations.checked_env_steps(carry.folder) == 1000  # mirrored while it trains
+        check(machine, 2000)
+    assert populations.checked_env_steps(carry.folder) == 2000  # the last, at the latest on exit
+    carried = json.loads((carry.folder / "progress.json").read_text())
+    assert carried["members"] == members and not list(carry.folder.glob(".tmp_*"))
+
+    fresh = RunDir(tmp_path / "machine-2")  # another machine: the run directory is gone
+    populations.Carry("tiny", fresh.pretrain).restore()
+    states, progress = fresh.load_pretrain()
+    assert progress["env_steps"] == 2000
+    assert [states[m]["w"][0] for m in members] == [2000, 2001]
+
+    check(fresh, 3000)  # the run's own later check stays
+    populations.Carry("tiny", fresh.pretrain).restore()
+    assert fresh.load_pretrain()[1]["env_steps"] == 3000
+    assert not populations.copy_check(carry.folder, fresh.pretrain)
+    assert populations.copy_check(fresh.pretrain, carry.folder)  # and is carried on
+    assert populations.checked_env_steps(carry.folder) == 3000
+
+    populations.Carry("tiny", fresh.pretrain).shipped()
+    assert not carry.folder.exists()

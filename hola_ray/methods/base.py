@@ -187,10 +187,12 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
     parts: list[TrainStats] = []
     metrics: dict[str, float] = {}
     done, judge_s, stop = 0, 0.0, ""
+    checks: list[dict[str, Any]] = []  # every check's figures, kept with the saved members
     saved = trainer.run.load_pretrain() if p.until else None
     if saved is not None:  # a stopped build: on from its last check (a fresh optimizer)
         states, progress = saved
         done, judge_s = int(progress["env_steps"]), float(progress["judge_s"])
+        checks = list(progress.get("checks", []))
     mep = oracle(0.0 if bonus_ends(done) else alpha)
     if saved is not None:
         mep.set_trained_weights(states)
@@ -221,6 +223,13 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
                 f["success"] >= p.until_success and f["collision"] <= p.until_collision
                 for f in figures
             )
+            checks.append(
+                {
+                    "env_steps": done,
+                    "success": [round(f["success"], 4) for f in figures],
+                    "collision": [round(f["collision"], 4) for f in figures],
+                }
+            )
             metrics |= {
                 "pretrain_members_success_min": round(min(f["success"] for f in figures), 4),
                 "pretrain_members_collision_max": round(max(f["collision"] for f in figures), 4),
@@ -237,7 +246,12 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
             if done < p.env_steps:  # a stopped build resumes here (a check's worth at most lost)
                 trainer.run.save_pretrain(
                     mep.weights(mep.members),
-                    {"members": mep.members, "env_steps": done, "judge_s": judge_s},
+                    {
+                        "members": mep.members,
+                        "env_steps": done,
+                        "judge_s": judge_s,
+                        "checks": checks,
+                    },
                 )
         else:
             stop = f"{p.env_steps:,} env steps" + (", not all competent" if p.until else "")

@@ -246,6 +246,9 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     run = RunDir(tmp_path / "stopped")
     states, progress = run.load_pretrain()
     assert run.completed() == [] and 1000 <= progress["env_steps"] < 2000
+    [first] = progress["checks"]  # the check's figures, kept with its members
+    assert first["env_steps"] == progress["env_steps"]
+    assert first["success"] == [round(f["success"], 4) for f in judged[0]]
     seated: list[dict] = []
     monkeypatch.setattr(base, "members_as_copies", real)
     monkeypatch.setattr(Oracle, "set_trained_weights", lambda self, w: seated.append(dict(w)))
