@@ -75,7 +75,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     )
     parser.add_argument("--num-cpus", type=int, help="CPUs of the local Ray (default: all)")
     parser.add_argument(
-        "--no-dashboard", action="store_true", help="start the local Ray without its dashboard"
+        "--dashboard",
+        action="store_true",
+        help="start the local Ray with its dashboard (2-3 s more; a cluster has its own)",
+    )
+    parser.add_argument(
+        "--no-dashboard",
+        action="store_true",
+        help="without the dashboard (the default)",
     )
     parser.add_argument(
         "--set",
@@ -196,7 +203,7 @@ def init_ray(args: argparse.Namespace) -> type:
         "hola_ray.methods.trainer",
         NAMESPACE,
         args.num_cpus,
-        not args.no_dashboard,
+        args.dashboard and not args.no_dashboard,
         args.metrics_port,
     )
     if url:

@@ -102,6 +102,10 @@ def test_run_and_experiment_take_a_metrics_port(monkeypatch, capsys):
     monkeypatch.setattr(process, "init_ray", lambda *a, **k: asked.append(a))
     run.init_ray(run.parse_args(["--metrics-port", "8080", "--no-dashboard"]))
     assert asked == [("hola_ray", None, False, 8080)]
+    # a local run starts Ray's dashboard only when asked (it costs 2-3 s of the start)
+    run.init_ray(run.parse_args([]))
+    run.init_ray(run.parse_args(["--dashboard"]))
+    assert [a[2] for a in asked[1:]] == [False, True]
     with pytest.raises(SystemExit):
         command.main(["--help"])
     assert "--metrics-port PORT" in capsys.readouterr().out
