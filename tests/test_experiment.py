@@ -105,6 +105,30 @@ def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(
     ]
     assert all(set(c["pools"]) == {"hot", "het"} for c in cached)  # a resume reuses them
 
+    # on a new machine: the published experiment restored into a fresh directory, where a
+    # resume retrains and replays nothing and writes the same results
+    from hola_ray.experiment import publish
+    from hola_ray.experiment.runner import Runner
+
+    docs, again = tmp_path / "docs", tmp_path / "again"
+    publish.publish(out, docs)
+    assert sorted(publish.restore(docs, again)) == ["hola-s0", "sp-s0"]
+    assert not (again / "trials" / "hola-s0" / "generations").exists()  # figures, not runs
+    runner = Runner(Experiment.from_yaml(again / "experiment.yaml"), again, say=lambda *_: None)
+    assert {t: s for t, (s, _) in runner.states().items()} == {"hola-s0": "done", "sp-s0": "done"}
+    played = sorted(p.name for p in (again / "evaluation").glob("*.json"))
+    assert played == ["hola-s0.json", "sp-s0.json"]  # published as played, and restored
+    runner.train()  # nothing to train
+    again_results = runner.write_results(runner.evaluate())  # nothing to play
+    import ray
+
+    assert not ray.is_initialized()  # no trial trained, no learner played: no Ray started
+    for part in ("trials", "methods", "differences"):  # as JSON: NaN (no success) equals NaN
+        assert json.dumps(again_results[part], sort_keys=True) == json.dumps(
+            results[part], sort_keys=True
+        ), part
+    assert publish.restore(docs, again) == []  # restored once
+
 
 def test_each_trial_is_the_base_with_the_experiment_and_method_overrides(tmp_path):
     path = tmp_path / "x.yaml"

@@ -5,10 +5,18 @@ the results, copied into a folder of the repository and committed there.
 
 A trial is copied once `progress.json` says it is done: its `config.yaml` (which names its
 population build), `metrics.csv`, `best.json`, `best.pt` (about 26 kB: anyone can play the
-compared learner) and `learner.json`; then, once written, the experiment's `experiment.yaml`,
+compared learner) and `learner.json`; each learner's evaluation (`evaluation/TRIAL.json`) as
+it is played; then, once written, the experiment's `experiment.yaml`,
 `results.json`, `results.md` and `figure.png`. `--commit` commits each new trial on its own
 (`git commit` in the repository that holds DOCS_DIR), so a machine replaced mid-experiment
 loses at most the trials in progress; `--watch` polls until the results are written.
+
+    python -m hola_ray.experiment.publish RUN_DIR DOCS_DIR --restore
+
+goes the other way, on a new machine: the published experiment and its done trials copied
+back into RUN_DIR (each trial marked done, `tasks.RESTORED`), so that `python -m
+hola_ray.experiment --resume RUN_DIR` trains only the trials not yet published and
+evaluates them all from their `best.pt`.
 """
 
 from __future__ import annotations
@@ -50,6 +58,7 @@ def publish(run: Path, docs: Path) -> list[str]:
     """Copy what is new: the trials done since the last call, and the results once they
     are complete. Returns what was copied (trial names, `results`)."""
     copied = []
+    docs.mkdir(parents=True, exist_ok=True)
     if not (docs / "experiment.yaml").is_file():
         shutil.copyfile(run / "experiment.yaml", docs / "experiment.yaml")
     for trial in done_trials(run):
@@ -62,6 +71,12 @@ def publish(run: Path, docs: Path) -> list[str]:
             if source.is_file():
                 shutil.copyfile(source, target / name)
         copied.append(trial)
+    for figures in sorted((run / "evaluation").glob("*.json")):  # each learner's, as played
+        target = docs / "evaluation" / figures.name
+        if not target.is_file() or target.read_bytes() != figures.read_bytes():
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(figures, target)
+            copied.append(f"evaluation of {figures.stem}")
     results = run / "results.json"
     if results.is_file() and (
         not (docs / "results.json").is_file()
@@ -72,6 +87,53 @@ def publish(run: Path, docs: Path) -> list[str]:
                 shutil.copyfile(run / name, docs / name)
         copied.append("results")
     return copied
+
+
+def restore(docs: Path, run: Path) -> list[str]:
+    """Copy the published experiment in `docs` back into the experiment directory `run`:
+    its `experiment.yaml` (or check that `run`'s is the same), and each published trial not
+    done in `run`, marked done at the last generation its metrics.csv holds. Returns the
+    trials restored."""
+    import csv
+
+    from hola_ray.experiment.tasks import RESTORED
+
+    config = docs / "experiment.yaml"
+    if not config.is_file():
+        raise SystemExit(f"{docs} holds no published experiment (no experiment.yaml)")
+    run.mkdir(parents=True, exist_ok=True)
+    if not (run / "experiment.yaml").is_file():
+        shutil.copyfile(config, run / "experiment.yaml")
+    elif (run / "experiment.yaml").read_bytes() != config.read_bytes():
+        raise SystemExit(f"{run}/experiment.yaml is not the one published in {docs}")
+    restored = []
+    for folder in sorted((docs / "trials").glob("*/")):
+        if not (folder / "best.pt").is_file() or not (folder / "metrics.csv").is_file():
+            continue
+        trial = run / "trials" / folder.name
+        if trial.is_dir():
+            rows = (
+                json.loads((run / "progress.json").read_text())
+                if (run / "progress.json").is_file()
+                else {}
+            )
+            if (trial / RESTORED).is_file() or rows.get(folder.name, {}).get("status") == "done":
+                continue
+            shutil.rmtree(trial)  # a partial copy here is behind the published, done trial
+        trial.mkdir(parents=True)
+        for name in TRIAL_FILES:
+            if (folder / name).is_file():
+                shutil.copyfile(folder / name, trial / name)
+        with (folder / "metrics.csv").open() as f:
+            last = max(int(float(row["generation"])) for row in csv.DictReader(f))
+        (trial / RESTORED).write_text(json.dumps({"from": str(folder), "generation": last}))
+        restored.append(folder.name)
+    for figures in sorted((docs / "evaluation").glob("*.json")):  # learners already played
+        target = run / "evaluation" / figures.name
+        if not target.is_file():
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(figures, target)
+    return restored
 
 
 def commit(docs: Path, what: list[str]) -> bool:
@@ -92,7 +154,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("docs", type=Path, help="where in the repository to copy it")
     parser.add_argument("--commit", action="store_true", help="commit each new trial")
     parser.add_argument("--watch", type=float, metavar="SECONDS", help="poll until results")
+    parser.add_argument(
+        "--restore",
+        action="store_true",
+        help="the other way: the published trials back into RUN_DIR, to --resume there",
+    )
     args = parser.parse_args(argv)
+    if args.restore:
+        done = restore(args.docs, args.run)
+        print(
+            f"restored {len(done)} published trial(s) into {args.run}: {', '.join(done) or '-'}; "
+            f"continue with: python -m hola_ray.experiment --resume {args.run}",
+            flush=True,
+        )
+        return 0
     if not (args.run / "experiment.yaml").is_file():
         parser.error(f"{args.run} holds no experiment.yaml")
     args.docs.mkdir(parents=True, exist_ok=True)

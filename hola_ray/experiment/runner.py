@@ -3,6 +3,7 @@ of its own, evaluates the learners against the pools and writes the results."""
 
 from __future__ import annotations
 
+import csv
 import json
 import time
 from collections.abc import Collection, Mapping, Sequence
@@ -419,9 +420,15 @@ class Runner:
         gradient steps (cumulative, at its last generation), pre-training env steps, the
         wall time of all its generations, and for a method with a rival rule the largest
         distance between its φ and the rival's (`phi_tv_max`)."""
+        from hola_ray.experiment.tasks import RESTORED
         from hola_ray.population.rundir import RunDir, phi_departure
 
-        rows = RunDir(self.trial_dir(trial)).metrics_rows()
+        root = self.trial_dir(trial)
+        if (root / RESTORED).is_file():  # restored from its published files: no generations
+            with (root / "metrics.csv").open() as f:
+                rows = list(csv.DictReader(f))
+        else:
+            rows = RunDir(root).metrics_rows()
         if not rows:
             return {}
         last = rows[-1]

@@ -4,6 +4,7 @@ evaluation against the pools (`hola_ray.evaluation.zero_shot`)."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -19,12 +20,19 @@ def trial_state(run_dir: Path, generations: int) -> tuple[str, int | None]:
     Done: its last generation is complete and so is learner.pt (written just after it)."""
     from hola_ray.population.rundir import RunDir
 
+    restored = Path(run_dir) / RESTORED
+    if restored.is_file():  # a published trial brought back to a new machine: done
+        return "done", int(json.loads(restored.read_text())["generation"])
     run = RunDir(run_dir)
     last = run.last_completed()
     if last is None:
         return "new", None
     return ("done" if run.finished(generations) else "partial"), last
 
+
+RESTORED = "restored.json"
+"""a trial folder brought back from its published files (`publish --restore`): the trial is
+done, its figures and chosen learner are there, its generations are not"""
 
 MARK = ".experiment"
 """DIR/.experiment: a token that says which nodes see the experiment's directory"""
