@@ -219,10 +219,6 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
             start = time.perf_counter()
             figures = members_as_copies(c, mep)
             judge_s += time.perf_counter() - start
-            competent = all(
-                f["success"] >= p.until_success and f["collision"] <= p.until_collision
-                for f in figures
-            )
             checks.append(
                 {
                     "env_steps": done,
@@ -240,8 +236,13 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
                 + ", collision "
                 + ", ".join(f"{f['collision']:.0%}" for f in figures)
             )
-            if competent:
+            in_a_row = passing_in_a_row(checks, p.until_success, p.until_collision)
+            if 0 < in_a_row < p.until_in_a_row:
+                trainer.say(f"pre-train: every member competent, {in_a_row} check(s) in a row")
+            if in_a_row >= p.until_in_a_row:
                 stop = f"competent after {done:,} env steps"
+                if p.until_in_a_row > 1:
+                    stop += f" ({in_a_row} checks in a row)"
                 break
             if done < p.env_steps:  # a stopped build resumes here (a check's worth at most lost)
                 trainer.run.save_pretrain(
@@ -268,6 +269,20 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
     if resumed:  # the env steps before the resume count too
         stats = dataclasses.replace(stats, env_steps=stats.env_steps + resumed)
     return Built([states[m] for m in mep.members], stats, said, metrics)
+
+
+def passing_in_a_row(checks: list[dict[str, Any]], success: float, collision: float) -> int:
+    """How many of the last checks in a row found every member competent (at least
+    `success`, at most `collision`): a resumed build counts the checks before its stop."""
+    count = 0
+    for check in reversed(checks):
+        ok = all(s >= success for s in check["success"]) and all(
+            c <= collision for c in check["collision"]
+        )
+        if not ok:
+            break
+        count += 1
+    return count
 
 
 def members_as_copies(config: RunConfig, oracle: Oracle) -> list[dict[str, float]]:

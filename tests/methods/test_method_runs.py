@@ -228,6 +228,32 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     assert row["pretrain_competent"] == 1 and 2000 <= row["pretrain_env_steps"] < 3000
     assert row["pretrain_members_success_min"] == 0.9
 
+    # `until_in_a_row: 2`: competent at the 2nd check and the 4th, not the 3rd: on to the
+    # 5th, where the streak reaches 2
+    judged.clear()
+
+    def streaky(config, oracle):
+        judged.append(real(config, oracle))
+        ok = {"success": 0.9, "collision": 0.1}
+        return [ok] * len(judged[-1]) if len(judged) in (2, 4, 5) else judged[-1]
+
+    monkeypatch.setattr(base, "members_as_copies", streaky)
+    twice = until | goal | {"env_steps": 6000, "until_in_a_row": 2}
+    said = train(smoke | {"generations": 0, "pretrain": twice}, tmp_path / "twice", capsys)
+    assert len(judged) == 5 and "(2 checks in a row)" in said
+    assert said.count("every member competent, 1 check(s) in a row") == 2
+    (row,) = RunDir(tmp_path / "twice").metrics_rows()
+    assert 5000 <= row["pretrain_env_steps"] < 6000
+    assert (
+        base.passing_in_a_row(
+            [{"success": [0.9], "collision": [0.1]}, {"success": [0.5], "collision": [0.1]}]
+            + [{"success": [0.9], "collision": [0.1]}] * 2,
+            0.85,
+            0.15,
+        )
+        == 2
+    )  # the trailing streak only
+
     # stopped during its second check: the build resumes from the members saved at the first
     judged.clear()
 

@@ -97,6 +97,7 @@ def test_a_common_start_is_taken_by_every_method_but_never_from_a_partner(tmp_pa
         ({"pretrain": {"alpha": 2.0}}, r"pretrain.alpha must be in \[0, 1\]"),
         ({"pretrain": {"learner_start": "best"}}, r"learner_start must be random or member"),
         ({"pretrain": {"alpha_until": -1}}, r"pretrain.alpha_until must be an integer >= 0"),
+        ({"pretrain": {"until_in_a_row": 0}}, r"pretrain.until_in_a_row must be"),
         ({"pretrain": {"start_agent": ""}}, r"pretrain.start_agent must be none or a shipped"),
         ({"pbt": {"start": "copies"}}, r"pbt.start must be self-play or mixed or random"),
         (
