@@ -48,6 +48,12 @@ RUNS = homes.RUNS / "populations"
 BUILDS = homes.POOLS / "builds"
 """where `build --carry` keeps each build's last check, to commit between machines"""
 PROGRESS = "progress.json"
+BARS = {"3v1": (0.85, 0.15), "3v2": (0.60, 0.35)}
+"""SPEC §5.1: a learned member as a team of its own copies succeeds at least, and collides
+at most, this often (per scenario)"""
+JUDGED = ("member", "checkpoint-end")
+"""the roles held to the bar: MEP's members and FCP's end checkpoints (a start checkpoint is
+random weights, FCP's weakest partner on purpose)"""
 FIGURES_SEED = 9_100_000
 """the run seed of the episodes each member is judged on as a team of its own copies"""
 
@@ -66,6 +72,23 @@ def team_figures(config: Any, export: dict[str, Any], episodes: int) -> dict[str
         "episodes": episodes,
         "seed": FIGURES_SEED,
     }
+
+
+def below_bar(figures: dict[int, dict[str, float]], roles: dict[int, str], scenario: str) -> str:
+    """The members held to SPEC's bar (`JUDGED`) that miss it, said in one line; "" when
+    none does."""
+    success, collision = BARS[scenario]
+    missed = [
+        f"node {v} ({f['success']:.1%} success, {f['collision']:.1%} collision)"
+        for v, f in sorted(figures.items())
+        if roles[v] in JUDGED and (f["success"] < success or f["collision"] > collision)
+    ]
+    if not missed:
+        return ""
+    return (
+        f"NOT at SPEC's {scenario} bar (as copies: success >= {success:.0%}, collision <= "
+        f"{collision:.0%}): " + ", ".join(missed)
+    )
 
 
 def checked_env_steps(folder: Path) -> int:
@@ -178,6 +201,8 @@ def build(name: str, episodes: int, progress: bool = True, carry: bool = False) 
             flush=True,
         )
     gen0 = run.metrics(0)
+    roles = config.strategy.member_roles(nodes)
+    scenario = f"{config.env.n_pursuers}v{config.env.n_evaders}"
     built = {
         k: gen0[k] for k in ("pretrain_env_steps", "pretrain_s", "pretrain_competent") if k in gen0
     }
@@ -198,10 +223,12 @@ def build(name: str, episodes: int, progress: bool = True, carry: bool = False) 
             "method": config.method,
             "built": built,
         },
-        roles=config.strategy.member_roles(nodes),
+        roles=roles,
         figures=figures,
-        scenario=f"{config.env.n_pursuers}v{config.env.n_evaders}",
+        scenario=scenario,
     )
+    missed = below_bar(figures, roles, scenario)
+    print(f"[{name}] " + (missed or f"every judged member at SPEC's {scenario} bar"), flush=True)
     if carried is not None:
         carried.shipped()
     return out

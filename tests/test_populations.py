@@ -142,3 +142,22 @@ def test_a_carried_check_outlasts_its_machine(tmp_path, monkeypatch):
 
     populations.Carry("tiny", fresh.pretrain).shipped()
     assert not carry.folder.exists()
+
+
+def test_a_build_says_which_members_miss_specs_bar():
+    """MEP's members and FCP's end checkpoints are held to SPEC's bar, a start checkpoint is
+    not; mep-3v2-s1's first build read 39.0 % collision for its member 0."""
+    from hola_ray.populations import below_bar
+
+    figures = {
+        0: {"success": 0.724, "collision": 0.390},
+        1: {"success": 0.752, "collision": 0.348},
+        2: {"success": 0.0, "collision": 1.0},
+    }
+    said = below_bar(figures, {0: "member", 1: "member", 2: "checkpoint-start"}, "3v2")
+    assert said.endswith("node 0 (72.4% success, 39.0% collision)")
+    assert (
+        below_bar(figures, {0: "checkpoint-middle", 1: "member", 2: "checkpoint-start"}, "3v2")
+        == ""
+    )
+    assert "node 1" in below_bar(figures, {0: "x", 1: "checkpoint-end", 2: "x"}, "3v1")

@@ -416,6 +416,7 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
     assert populations.main(["build", "tiny-s0", "--episodes", "4", "--quiet"]) == 0
     said = capsys.readouterr().out
     assert "population tiny-s0 written to" in said and "node_0" in said
+    assert "[tiny-s0] NOT at SPEC's 3v2 bar (as copies: success >= 60%, collision <= 35%)" in said
     folder = shelf / "tiny-s0"
     manifest = json.loads((folder / "manifest.json").read_text())
     assert manifest["kind"] == "mep" and manifest["seed"] == 0
