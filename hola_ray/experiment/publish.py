@@ -106,18 +106,13 @@ def restore(docs: Path, run: Path) -> list[str]:
         shutil.copyfile(config, run / "experiment.yaml")
     elif (run / "experiment.yaml").read_bytes() != config.read_bytes():
         raise SystemExit(f"{run}/experiment.yaml is not the one published in {docs}")
-    restored = []
+    restored, done = [], set(done_trials(run))
     for folder in sorted((docs / "trials").glob("*/")):
         if not (folder / "best.pt").is_file() or not (folder / "metrics.csv").is_file():
             continue
         trial = run / "trials" / folder.name
         if trial.is_dir():
-            rows = (
-                json.loads((run / "progress.json").read_text())
-                if (run / "progress.json").is_file()
-                else {}
-            )
-            if (trial / RESTORED).is_file() or rows.get(folder.name, {}).get("status") == "done":
+            if (trial / RESTORED).is_file() or folder.name in done:
                 continue
             shutil.rmtree(trial)  # a partial copy here is behind the published, done trial
         trial.mkdir(parents=True)
