@@ -40,11 +40,52 @@ def worker_runtime_env(local: bool = True) -> dict[str, Any] | None:
     return RAY_RUNTIME_ENV
 
 
+RAY_VERSION = "2.60.0"
+"""the Ray whose start `lean_local_ray` was read from; another keeps its own"""
+
+LEAN_LOCAL_RAY = {"dashboard_agent_listen_port": 0, "no_monitor": True}
+"""What a local Ray of this project starts differently from Ray 2.60's defaults (`RayParams`
+fields; `ray.init` takes neither):
+
+- `dashboard_agent_listen_port` 0: the dashboard agent's HTTP server on a port the system
+  picks, not the fixed 52365. With a second Ray on the machine (the suite's two workers, a
+  command beside a run or a population build) the fixed port is taken: the agent retried it
+  for 3.4 s (five back-offs) and gave up, and the raylet waits for the agent before it
+  registers, so every such `ray.init` waited 3.4 s for nothing (measured beside a running
+  Ray: 7.1 s against 4.4 s) and ran without the agent's server (Ray Jobs). 0 is Ray's own
+  "any free port": the agent records the port it bound where the dashboard looks it up.
+- `no_monitor`: no autoscaler monitor, a process that only drives an autoscaler, which a
+  local Ray has none of (0.6 core-s and 0.3 s of each start, and a poll every few
+  seconds). A cluster's nodes, started by `ray start`, keep theirs."""
+
+
+def lean_local_ray(log_monitor: bool = True) -> bool:
+    """Every local Ray this process starts from now on takes `LEAN_LOCAL_RAY`, and no log
+    monitor unless `log_monitor` (the process that streams the workers' output to the
+    driver: nothing to stream where `log_to_driver` is off); True when that is in place."""
+    import ray
+    from ray._private import parameter
+
+    if ray.__version__ != RAY_VERSION:
+        return False
+    init = getattr(parameter.RayParams.__init__, "_ray_default", parameter.RayParams.__init__)
+    lean = {**LEAN_LOCAL_RAY, "include_log_monitor": log_monitor}
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        init(self, *args, **{**lean, **kwargs})
+
+    __init__._ray_default = init  # type: ignore[attr-defined]
+    parameter.RayParams.__init__ = __init__
+    return True
+
+
 def init_local_ray(**options: Any) -> None:
-    """A local Ray for a command of this project: no dashboard unless asked, and every
-    worker with the driver's hash seed and quiet loggers (`worker_runtime_env`)."""
+    """A local Ray for a command of this project: no dashboard unless asked, lean
+    (`lean_local_ray`), and every worker with the driver's hash seed and quiet loggers
+    (`worker_runtime_env`)."""
     import ray
 
+    lean_local_ray()
     ray.init(
         address="local",
         **{"include_dashboard": False, "runtime_env": worker_runtime_env(), **options},
@@ -75,6 +116,7 @@ def init_ray(
             )
         ctx = ray.init(namespace=namespace, runtime_env=RAY_RUNTIME_ENV)
     else:
+        lean_local_ray()
         ctx = ray.init(
             address="local",
             namespace=namespace,

@@ -81,6 +81,39 @@ def test_a_runs_figures_are_served_as_metrics_equal_to_its_csv(watched, tmp_path
     assert actor.repr_name == "coordinator:watched/hola-s0 (hola; starting at generation 0)"
 
 
+def test_a_local_ray_is_lean_and_serves_its_agent_on_a_free_port(watched):
+    """This module's Ray, started as a command starts it (another Ray may run beside it:
+    the suite's other worker, a build), has its dashboard agent's HTTP server on a port the
+    system picked, recorded where the dashboard looks it up, and serving; never Ray's fixed
+    52365, which a second Ray on the machine could not bind (it retried for 3.4 s before its
+    raylet registered, then ran without the server: -1). No autoscaler monitor; the log
+    monitor kept (a command's workers print to its terminal)."""
+    import json
+
+    import ray
+    from ray._private import ray_constants
+    from ray._private.parameter import RayParams
+    from ray.dashboard import consts
+    from ray.experimental.internal_kv import _internal_kv_get
+
+    from hola_ray.process import LEAN_LOCAL_RAY, lean_local_ray
+
+    assert lean_local_ray()  # in place, and a second call keeps Ray's own underneath
+    assert RayParams().dashboard_agent_listen_port == 0
+    assert RayParams(dashboard_agent_listen_port=52365).dashboard_agent_listen_port == 52365
+    assert {k: getattr(RayParams(), k) for k in LEAN_LOCAL_RAY} == LEAN_LOCAL_RAY
+    node_id = ray.get_runtime_context().get_node_id()
+    key = f"{consts.DASHBOARD_AGENT_ADDR_NODE_ID_PREFIX}{node_id}".encode()
+    answer = _internal_kv_get(key, namespace=ray_constants.KV_NAMESPACE_DASHBOARD)
+    ip, http_port, _ = json.loads(answer)
+    assert http_port not in (-1, 52365)
+    with urllib.request.urlopen(f"http://{ip}:{http_port}/api/local_raylet_healthz") as served:
+        assert served.status == 200
+    started = ray._private.worker._global_node.all_processes
+    assert ray_constants.PROCESS_TYPE_MONITOR not in started
+    assert ray_constants.PROCESS_TYPE_LOG_MONITOR in started
+
+
 def test_the_grafana_dashboard_plots_every_series_per_run_and_trial():
     import json
 
