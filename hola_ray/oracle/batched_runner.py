@@ -86,7 +86,12 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         quiet_ray_noise()  # before RLlib builds the modules (its deprecation warnings)
         rllib_fixes.apply()  # before it builds its connectors and seeds torch
         super().__init__(config=config, **kwargs)
-        if self.worker_index > 0:
+        if self.worker_index > 0 or self.config.num_env_runners == 0:
+            # a remote runner, or the driver's own where it samples (`oracle.env_runners: 0`):
+            # a driver left on torch's two threads beside numba's pool sampled at 1,956 env
+            # steps a second instead of 7,300, and at 150–214 where a rollout of its own
+            # (monitors played before the Oracle was built, on resuming) had set torch's
+            # threads to 1 and back before this runner was built
             pin_threads(self.config.num_cpus_per_env_runner)
         if self.env is None:  # the local runner beside remote ones holds no env
             return

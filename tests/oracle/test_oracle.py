@@ -599,3 +599,30 @@ def test_every_method_starts_its_learner_from_the_same_weights_on_a_seed(ray_ses
     for key, state in starts.items():
         same = all(np.array_equal(reference[k], state[k]) for k in reference)
         assert same == (key[1] == 3), key
+
+
+def test_an_oracle_sampling_in_the_driver_pins_its_threads_whatever_ran_before(ray_session):
+    """`oracle.env_runners: 0` samples in the driver: its runner pins torch and numba to the
+    runner's CPUs, as a remote runner does, whatever the process set before (a resumed run
+    plays its lost monitors first, and a rollout sets torch's threads to 1 and back; left on
+    two, that driver sampled at 150–214 env steps a second instead of thousands)."""
+    import numba
+
+    raw = CONFIG.to_dict()
+    raw["oracle"] = raw["oracle"] | {"env_runners": 0}
+    config = RunConfig.from_dict(raw)
+    from hola_ray.env.core import BatchedPursuit
+
+    env = BatchedPursuit(config.env, 4)  # the simulator's pool started, as a rollout does
+    env.step(np.zeros((4, config.env.n_pursuers)), None)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        oracle = config.strategy.make_oracle(config)
+        try:
+            assert torch.get_num_threads() == 1
+            assert numba.get_num_threads() == 1
+        finally:
+            oracle.stop()
+    finally:
+        torch.set_num_threads(threads)
