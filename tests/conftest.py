@@ -24,6 +24,10 @@ os.environ.setdefault("PYTHONHASHSEED", "0")
 # rollout tests took 17.7 s so, 6.3 s on one thread (4.9 s on two with a core idle). Every
 # process of the suite (set before numba is imported, and inherited) runs them on one.
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+# torch's intra-op threads likewise (OpenMP, read when torch loads): each worker, command
+# and Ray worker of the suite on one, as `hola_ray.process.pin_threads` puts a Ray worker
+# on its one CPU.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 
 @pytest.fixture(scope="session")
