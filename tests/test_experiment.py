@@ -65,12 +65,14 @@ def killed_experiment(commands, folder: Path) -> dict:
 @pytest.mark.e2e
 @pytest.mark.timeout(600)
 def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(
-    commands, tmp_path, smoke_run
+    commands, tmp_path, request
 ):
     """The smoke experiment killed by SIGKILL once its first trial is done: --resume does
     not rerun that trial, which matches `python -m hola_ray.run` of its config, and
     results.json holds every method × seed × pool. (Its commands: `killed_experiment`.)"""
     seen = killed_experiment(commands, tmp_path)
+    # asked for once its commands ran: the other worker makes it meanwhile (both start first)
+    smoke_run = request.getfixturevalue("smoke_run")
     out = seen["out"]
     first = out / "trials" / "hola-s0"
     assert seen["first done said"], "the experiment ended before its first trial was done"
