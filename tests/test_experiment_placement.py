@@ -21,13 +21,14 @@ from ray.cluster_utils import Cluster
 
 from hola_ray.experiment import Experiment, Runner
 from hola_ray.population.rundir import RunDir
-from hola_ray.process import worker_runtime_env
+from hola_ray.process import lean_local_ray, worker_runtime_env
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module", autouse=True)
 def two_nodes():
+    lean_local_ray(log_monitor=False)  # its head's agent on a free port (another Ray runs)
     cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0})
     for _ in range(2):
         cluster.add_node(num_cpus=2)
