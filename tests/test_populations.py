@@ -35,8 +35,10 @@ def test_the_default_run_adopts_a_shipped_population_that_fits_it():
 @pytest.mark.parametrize("name", PARTNERS)
 def test_every_shipped_member_pursues_as_a_team_of_its_copies(name):
     """Issue 35's success goal for a shipped member as copies (≥ 85 % at 3 vs 1, ≥ 60 % at
-    3 vs 2) on ≥ 300 recorded episodes. Its collision goal (≤ 15 %, ≤ 35 %) is not asserted:
-    mep-3v1-s0's members collide in 17–23 % (docs/populations.md)."""
+    3 vs 2) on ≥ 300 recorded episodes, and at 3 vs 2 SPEC's collision bar (≤ 35 %, issue
+    47) but in the pilots' population (`*-pilots`, shipped below it as what the pilots
+    trained beside). The 3 vs 1 collision goal (≤ 15 %) is not asserted: mep-3v1-s0's
+    members collide in 17–23 % (docs/populations.md)."""
     folder = shipped.population_dir(name)
     manifest = shipped.read(folder)
     shipped.verify(folder, manifest)
@@ -44,9 +46,11 @@ def test_every_shipped_member_pursues_as_a_team_of_its_copies(name):
     judged = [e for e in manifest["members"].values() if e["role"] in ("member", "checkpoint-end")]
     assert judged
     for entry in judged:
-        success, _ = GOALS[entry["scenario"]]
+        success, collision = GOALS[entry["scenario"]]
         assert entry["team_episodes"] >= 300
         assert entry["team_success"] >= success, entry
+        if entry["scenario"] == "3v2" and not name.endswith("-pilots"):
+            assert entry["team_collision"] <= collision, entry
 
 
 @pytest.mark.parametrize("name", SHIPPED)
