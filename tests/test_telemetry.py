@@ -87,7 +87,8 @@ def test_a_local_ray_is_lean_and_serves_its_agent_on_a_free_port(watched):
     system picked, recorded where the dashboard looks it up, and serving; never Ray's fixed
     52365, which a second Ray on the machine could not bind (it retried for 3.4 s before its
     raylet registered, then ran without the server: -1). No autoscaler monitor; the log
-    monitor kept (a command's workers print to its terminal)."""
+    monitor kept (a command's workers print to its terminal); the dashboard, asked for,
+    with its head."""
     import json
 
     import ray
@@ -112,6 +113,7 @@ def test_a_local_ray_is_lean_and_serves_its_agent_on_a_free_port(watched):
     started = ray._private.worker._global_node.all_processes
     assert ray_constants.PROCESS_TYPE_MONITOR not in started
     assert ray_constants.PROCESS_TYPE_LOG_MONITOR in started
+    assert ray_constants.PROCESS_TYPE_DASHBOARD in started  # asked for: its head stays
 
 
 def test_the_grafana_dashboard_plots_every_series_per_run_and_trial():

@@ -49,6 +49,20 @@ def oracle(ray_session):
     o.stop()
 
 
+def test_a_local_ray_without_the_dashboard_starts_no_dashboard_head(oracle):
+    """This module's Ray, started as the commands start theirs without the dashboard
+    (`lean_local_ray`), has no dashboard head (Ray 2.60 starts one regardless and waits
+    for it), yet runs the Oracle's env runners and reports no dashboard."""
+    import ray
+    from ray._private import ray_constants
+
+    started = ray._private.worker._global_node.all_processes
+    assert ray_constants.PROCESS_TYPE_RAYLET in started
+    assert ray_constants.PROCESS_TYPE_DASHBOARD not in started
+    assert not ray._private.worker._global_node.webui_url
+    assert ray.get_runtime_context().get_node_id()
+
+
 def test_building_an_oracle_applies_the_rllib_fixes_in_its_processes(oracle):
     """`rllib_fixes.apply()` is called where the Oracle builds RLlib's parts, not by an
     import: in the driver and in every env runner (each its own process) both fixes are in
