@@ -253,6 +253,9 @@ def test_methods_and_their_paired_differences_from_every_trials_episodes():
     table = results_table(out, diffs, seeds=2)
     assert "| hola-sp | hot | -60.0%" in table and "hola behind" in table
     assert "| hola-uniform | hot |" in table and " tie |" in table
+    # the smallest difference the design detects (80 % power, 5 % two-sided): 2.8 se
+    row = next(line for line in table.splitlines() if line.startswith("| hola-uniform | hot"))
+    assert row.split(" | ")[3] == f"{2.8 * tie['se']:.1%}"
 
 
 @pytest.mark.parametrize(

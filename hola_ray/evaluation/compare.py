@@ -10,6 +10,13 @@ each draw
   teammates drawn beside the learner), one resample shared by every trial of the draw, so
   that every trial and every method still plays the same episodes.
 
+Where the methods' training seeds are paired (`seeds`: seed s of every method trained
+beside the same population build from the same start, as an experiment's are), methods with
+the same seeds share the draw of seeds: a draw that takes seed 3 twice takes it twice for
+each of them, so a difference A − B is resampled as the seeds' paired differences are, and
+what a seed does to both methods (its build, its start) cancels as the shared episodes'
+noise does. Methods whose seeds differ are resampled apart.
+
 A figure's standard error is the standard deviation of its bootstrap draws, so it holds both
 the spread between training seeds and the episode noise; its 95 % interval is the 2.5th to
 97.5th percentile. A difference A − B is taken inside each draw, on the shared episodes, so
@@ -97,11 +104,13 @@ def compare(
     pairs: Sequence[tuple[str, str]] = (),
     draws: int = 4000,
     seed: int = 0,
+    seeds: Mapping[str, Sequence[int]] | None = None,
 ) -> tuple[dict[str, dict[str, dict]], dict[str, dict[str, dict]]]:
     """Per method (its trials' episodes, one mapping per training seed, all on the same
     episodes) the figures {metric: {mean, se, ci95}}, and per pair (A, B) the difference
     A − B {metric: {mean, se, ci95}}: the mean over a method's seeds, intervals by the
-    stratified bootstrap of the module doc."""
+    stratified bootstrap of the module doc. `seeds`: each method's training seeds, in the
+    order of its trials; methods with the same ones are resampled as pairs (module doc)."""
     trials = [t for ts in methods.values() for t in ts]
     if not trials:
         raise ValueError("no trials to compare")
@@ -116,11 +125,19 @@ def compare(
     counts = resample_counts(strata, draws, rng)
     points: dict[str, dict[str, float]] = {}
     method_draws: dict[str, dict[str, np.ndarray]] = {}
+    shared: dict[tuple[int, ...], np.ndarray] = {}  # paired seeds → their one resample
     for name, ts in methods.items():
         if not ts:
             raise ValueError(f"method {name} has no trials")
         per_trial = [trial_draws(t, counts) for t in ts]
-        picks = rng.integers(0, len(ts), size=(draws, len(ts)))  # training seeds, resampled
+        own = tuple(seeds[name]) if seeds is not None and name in seeds else None
+        if own is not None and len(own) != len(ts):
+            raise ValueError(f"method {name}: {len(ts)} trials but seeds {list(own)}")
+        picks = shared.get(own) if own is not None else None
+        if picks is None:
+            picks = rng.integers(0, len(ts), size=(draws, len(ts)))  # training seeds, resampled
+            if own is not None:
+                shared[own] = picks
         point_rows = [figures(t) for t in ts]
         points[name] = {m: float(_nanmean([p[m] for p in point_rows])) for m in METRICS}
         method_draws[name] = {}

@@ -378,7 +378,8 @@ class Runner:
             "methods": methods,
             "differences": differences,
             "intervals": "95 %, stratified bootstrap: training seeds within each method, "
-            "episodes within each partner combination, shared by every trial (paired)",
+            "one resample shared by methods with the same seeds (paired by seed), episodes "
+            "within each partner combination, shared by every trial (paired)",
         }
         _atomic_json(self.out / "results.json", results)
         figure_input = {

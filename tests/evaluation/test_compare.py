@@ -77,6 +77,31 @@ def test_the_standard_error_holds_the_training_seeds_spread():
     assert figs["alike"]["success"]["se"] > 0  # episode noise alone, with identical seeds
 
 
+def test_paired_seeds_cancel_what_a_seed_does_to_both_methods():
+    """Six seeds whose builds differ widely (a seed's rate 0.2–0.9), where A beats B by 8
+    points at every seed on the shared episodes: resampled seed by seed the difference is
+    plainly above zero; resampled apart, the seeds' spread swamps it. Seeds that differ
+    are resampled apart, as without seeds."""
+    rng = np.random.default_rng(5)
+    hard = rng.random(300)
+    rates = (0.2, 0.35, 0.5, 0.65, 0.8, 0.9)
+    a = [trial(hard < r + 0.08) for r in rates]
+    b = [trial(hard < r) for r in rates]
+    pairs = [("a", "b")]
+    _, apart = compare({"a": a, "b": b}, pairs, draws=2000, seed=1)
+    six = list(range(6))
+    _, paired = compare({"a": a, "b": b}, pairs, draws=2000, seed=1, seeds={"a": six, "b": six})
+    assert paired["a-b"]["success"]["mean"] == pytest.approx(0.08, abs=0.01)
+    assert paired["a-b"]["success"]["ci95"][0] > 0.05
+    assert apart["a-b"]["success"]["ci95"][0] < 0 < apart["a-b"]["success"]["ci95"][1]
+    assert paired["a-b"]["success"]["se"] < apart["a-b"]["success"]["se"] / 5
+    other = {"a": six, "b": [s + 6 for s in six]}
+    _, unpaired = compare({"a": a, "b": b}, pairs, draws=2000, seed=1, seeds=other)
+    assert unpaired == apart
+    with pytest.raises(ValueError, match="6 trials but seeds"):
+        compare({"a": a, "b": b}, pairs, seeds={"a": six[:5], "b": six})
+
+
 def test_trials_on_other_episodes_cannot_be_compared():
     a = trial([1, 0, 1], strata=[0, 1, 1])
     b = trial([1, 0, 1], strata=[1, 1, 0])
