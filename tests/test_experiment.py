@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -322,6 +323,36 @@ def test_a_pool_named_by_its_folder_is_the_same_pool():
     settings = {"cell_episodes": 1, "seeds": [0]}
     by_folder = _reference(str(ROOT / "pools" / "hot"), settings, 2)
     np.testing.assert_array_equal(by_folder, _reference("hot", settings, 2))
+
+
+def test_a_watching_publisher_started_before_its_experiment_waits_for_it(tmp_path, capsys):
+    """`publish RUN DOCS --watch S` started beside a new experiment, before RUN exists,
+    waits for its experiment.yaml and then publishes; without --watch it is an error."""
+    import threading
+
+    from hola_ray.experiment import publish
+
+    run, docs = tmp_path / "run", tmp_path / "docs"
+    with pytest.raises(SystemExit):
+        publish.main([str(run), str(docs)])
+    assert "holds no experiment.yaml" in capsys.readouterr().err
+    returned: list[int] = []
+    watcher = threading.Thread(
+        target=lambda: returned.append(publish.main([str(run), str(docs), "--watch", "0.01"]))
+    )
+    watcher.start()
+    time.sleep(0.2)
+    assert watcher.is_alive() and not docs.exists()  # waiting, nothing published
+    (run / "trials" / "sp-s0").mkdir(parents=True)
+    for name in ("config.yaml", "metrics.csv", "best.json", "best.pt", "learner.json"):
+        (run / "trials" / "sp-s0" / name).write_text(name)
+    (run / "progress.json").write_text(json.dumps({"sp-s0": {"status": "done"}}))
+    (run / "results.json").write_text("{}")
+    (run / "experiment.yaml").write_text("seeds: [0]\n")
+    watcher.join(timeout=30)
+    assert returned == [0]
+    assert (docs / "trials" / "sp-s0" / "best.pt").read_text() == "best.pt"
+    assert "waiting for" in capsys.readouterr().out
 
 
 def test_finished_trials_are_published_and_committed_one_by_one(tmp_path):

@@ -9,7 +9,8 @@ compared learner) and `learner.json`; each learner's evaluation (`evaluation/TRI
 it is played; then, once written, the experiment's `experiment.yaml`,
 `results.json`, `results.md` and `figure.png`. `--commit` commits each new trial on its own
 (`git commit` in the repository that holds DOCS_DIR), so a machine replaced mid-experiment
-loses at most the trials in progress; `--watch` polls until the results are written.
+loses at most the trials in progress; `--watch` polls until the results are written (and,
+started beside a new experiment, until it has written its folder).
 
     python -m hola_ray.experiment.publish RUN_DIR DOCS_DIR --restore
 
@@ -164,7 +165,12 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 0
     if not (args.run / "experiment.yaml").is_file():
-        parser.error(f"{args.run} holds no experiment.yaml")
+        if args.watch is None:
+            parser.error(f"{args.run} holds no experiment.yaml")
+        # started beside the experiment, before it wrote its folder: wait for it
+        print(f"waiting for {args.run / 'experiment.yaml'} (written as the experiment starts)")
+        while not (args.run / "experiment.yaml").is_file():
+            time.sleep(args.watch)
     args.docs.mkdir(parents=True, exist_ok=True)
     pending: list[str] = []
     while True:
