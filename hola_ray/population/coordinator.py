@@ -50,6 +50,21 @@ def total_variation(p: Mapping[int, float], q: Mapping[int, float]) -> float:
     return 0.5 * sum(abs(p.get(v, 0.0) - q.get(v, 0.0)) for v in set(p) | set(q))
 
 
+def saved_population(state: Mapping[str, Any], config: PopulationConfig) -> Population:
+    """The population a run goes on with from a saved generation (its `state.json`): its
+    members and hyperedges, under the run's own open-ended settings (m, size). A generation 0
+    adopted from a shipped build or another run so keeps the members, not that build's m or
+    size (a run with m 4 on a build made with m 3 accepted only by 3)."""
+    population = Population.from_dict(state["population"])
+    if len(population.slots) > config.max_size:
+        raise ValueError(
+            f"the saved population holds {len(population.slots)} members, more than "
+            f"population.max_size {config.max_size}"
+        )
+    population.max_size, population.top_m = config.max_size, config.top_m
+    return population
+
+
 @ray.remote(num_cpus=0, max_restarts=0)
 class Coordinator:
     """Owns `Population` and the run directory; one per run, named `coordinator:<run>`."""
@@ -79,7 +94,7 @@ class Coordinator:
             self.last_metrics: dict[str, Any] = {}
         else:
             state = self.run.read_json(self.generation, "state.json")
-            self.population = Population.from_dict(state["population"])
+            self.population = saved_population(state, population)
             self.rules.setup(self.population)  # one adopted from another method's build
             self.last_metrics = self.run.metrics(self.generation)
         self.phase = "idle"

@@ -46,6 +46,26 @@ def test_accepted_candidate_replaces_the_lowest_eta_member_when_full():
     assert p.members == [1, 2, 3, 4]
 
 
+def test_an_adopted_generation_zero_takes_the_runs_own_m_and_size():
+    """A generation 0 adopted from a build with m 2 and room for 4 (its state.json) plays
+    the run's open-ended phase: the run's m 3 and size 6, so the worked example's candidate
+    (rank 3) joins, into a free slot; a run too small for the members is refused."""
+    from hola_ray.population.config import PopulationConfig
+    from hola_ray.population.coordinator import saved_population
+
+    built = worked_example(max_size=4, top_m=2)
+    assert not built.decide().accepted  # the build's m turns it away: four members, as shipped
+    state = {"population": built.to_dict()}
+    p = saved_population(state, PopulationConfig(max_size=6, initial_size=4, top_m=3))
+    assert (p.max_size, p.top_m) == (6, 3) and p.members == [0, 1, 2, 3]
+    candidate = p.propose()
+    p.record([edge((candidate, 1, 2), 9), edge((candidate, 0, 3), 0), edge((candidate, 0, 1), 3)])
+    d = p.decide()
+    assert d.rank == 3 and d.accepted and d.replaced is None and d.slot == 4
+    with pytest.raises(ValueError, match="more than population.max_size 3"):
+        saved_population(state, PopulationConfig(max_size=3, initial_size=3, top_m=3))
+
+
 def test_candidate_outside_top_m_is_removed():
     p = worked_example(max_size=4, top_m=2)
     d = p.decide()
