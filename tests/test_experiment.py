@@ -271,13 +271,14 @@ def test_the_shipped_experiments_load(name, evaders):
     exp = Experiment.from_yaml(ROOT / "configs" / "experiments" / f"{name}.yaml")
     assert all(exp.run_config(t).env.n_evaders == evaders for t in exp.trials())
     if name != "smoke":
-        seeds = tuple(range(12)) if name == "comparison-3v2" else (0, 1, 2)
-        assert set(exp.methods) == set(METHODS) and exp.seeds == seeds
+        seeds = set(range(12)) if name == "comparison-3v2" else {0, 1, 2}
+        assert set(exp.methods) == set(METHODS) and set(exp.seeds) == seeds
     if name == "comparison-3v2":
         for trial in exp.trials():
             config = exp.run_config(trial)
             assert config.pretrain.learner_start == "random"
             assert config.pretrain.population in ("none", "{kind}-3v2-s{seed%3}")
+            assert (config.population.top_m, config.population.max_size) == (4, 10)
         assert exp.run_config("pbt-s0").pbt.start == "random"
     if name == "laptop":
         for trial in exp.trials():
