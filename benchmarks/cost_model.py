@@ -5,18 +5,23 @@
         [--node-cpus 16] [--nodes 1 5] [--out FILE]
 
 Each RUN_DIR is a run (or an experiment's trial) measured on this machine; `--calib` is
-`../shared/calib.py`'s scale of the machine it ran on (this machine's seconds ÷ the
-reference machine's), so every figure below is in reference-machine seconds. From the runs'
-`metrics.csv` the model reads, per run: generation 0's wall time and its pre-training env
-steps, and the mean wall time of a generation ≥ 1 with its learner transitions. A trial of
-the experiment then costs
+`../shared/calib.py`'s scale of the machine it ran on (the reference machine's seconds ÷
+this machine's, for the same work), so every figure below is in reference-machine seconds.
+From the runs' `metrics.csv` the model reads, per run: generation 0's wall time, its
+pre-training's time and env steps, and the mean wall time and Oracle time of a generation
+≥ 1 with its learner transitions. A trial of the experiment then costs
 
-    start + generation 0 (pre-training scaled by its env steps) + G × a generation (scaled
-    by the learner transitions per generation),
+    start + generation 0 (its pre-training scaled by its env steps, the rest as measured)
+    + G × a generation (its Oracle scaled by the learner transitions per generation, the
+    rest — Grapher, validation, judges, commit — as measured),
 
-with the rates of the measured run of the same method if there is one, else of the first
-run (say which in `basis`). Self-play trains no population and weighs no hyperedges: with a
-measured sp run it has its own rates, else it is charged as the first run (an upper bound).
+so a run measured at the experiment's own settings with fewer env steps (a shorter Oracle
+and pre-training) prices the full budget without scaling the per-generation work that does
+not grow with it; a run whose rows lack `oracle_s` / `pretrain_s` has its whole generation
+(or generation 0) scaled, an upper bound. With the rates of the measured run of the same
+method if there is one, else of the first run (say which in `basis`). Self-play trains no
+population and weighs no hyperedges: with a measured sp run it has its own rates, else it
+is charged as the first run (an upper bound).
 
 The cluster: a trial holds `1 + oracle.env_runners` CPUs (`ExperimentRunner.bundles`), so a
 node of `--node-cpus` CPUs holds ⌊cpus ÷ that⌋ trials side by side; trials are started in
@@ -56,6 +61,12 @@ class Measured:
     generation_s: float
     """mean wall time of a generation ≥ 1"""
     samples_per_generation: float
+    oracle_s: float | None = None
+    """mean Oracle time of a generation ≥ 1 (the part that scales with the learner's
+    transitions); None: not recorded, the whole generation scales"""
+    pretrain_s: float | None = None
+    """generation 0's pre-training time (the part that scales with its env steps); None:
+    not recorded, the whole of generation 0 scales"""
     """mean learner transitions of a generation ≥ 1"""
 
     @classmethod
@@ -83,6 +94,11 @@ class Measured:
             if int(r["generation"]) >= 1:
                 samples.append(total - before)
             before = total
+
+        def recorded(row: dict[str, str] | None, key: str) -> bool:
+            return (row or {}).get(key, "") not in ("", None)
+
+        split = all(recorded(r, "oracle_s") for r in later)
         return cls(
             path=path,
             method=config["method"],
@@ -91,6 +107,8 @@ class Measured:
             pretrain_env_steps=num(zero, "pretrain_env_steps"),
             generation_s=sum(num(r, "wall_s") for r in later) / len(later) * calib,
             samples_per_generation=sum(samples) / len(samples),
+            oracle_s=sum(num(r, "oracle_s") for r in later) / len(later) * calib if split else None,
+            pretrain_s=num(zero, "pretrain_s") * calib if recorded(zero, "pretrain_s") else None,
         )
 
 
@@ -100,8 +118,11 @@ def trial_seconds(config, basis: Measured) -> dict[str, float]:
     if config.pretrain.population == "none" and not config.strategy.self_play:
         steps = basis.pretrain_env_steps
         scale = config.pretrain.env_steps / steps if steps else 1.0
-        zero = basis.zero_s * scale
-    per_generation = basis.generation_s * config.oracle.env_steps / basis.samples_per_generation
+        grows = basis.zero_s if basis.pretrain_s is None else min(basis.pretrain_s, basis.zero_s)
+        zero = basis.zero_s - grows + grows * scale
+    grows = basis.generation_s if basis.oracle_s is None else basis.oracle_s
+    scale = config.oracle.env_steps / basis.samples_per_generation
+    per_generation = basis.generation_s - grows + grows * scale
     return {
         "start_s": basis.start_s,
         "generation_0_s": zero,

@@ -10,6 +10,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from hola_ray.experiment.config import Experiment
+
 ROOT = Path(__file__).parents[2]
 _spec = importlib.util.spec_from_file_location("cost_model", ROOT / "benchmarks" / "cost_model.py")
 cost_model = importlib.util.module_from_spec(_spec)
@@ -62,6 +64,36 @@ def test_an_experiment_costed_from_a_run_and_scheduled_on_nodes(tmp_path):
     assert by["sp-s0"]["generation_0_s"] == 0.0  # self-play trains no population
     assert out["trials_side_by_side"] == {"1": 2, "2": 4}  # 2 CPUs a trial
     assert out["wall_hours"]["2"] < out["wall_hours"]["1"] <= out["trial_hours_sum"]
+
+
+def test_only_the_oracle_and_the_pretraining_scale_with_the_budget(tmp_path):
+    """A run measured with a shorter Oracle and pre-training: the Grapher, validation and
+    the rest of each generation are charged as measured, not multiplied with the budget."""
+    rows = [
+        {"generation": 0, "wall_s": 100, "pretrain_env_steps": 50_000, "pretrain_s": 80},
+        {"generation": 1, "wall_s": 60, "oracle_s": 40, "learner_samples": 100_000},
+        {"generation": 2, "wall_s": 80, "oracle_s": 60, "learner_samples": 200_000},
+    ]
+    split = cost_model.Measured.read(write_run(tmp_path / "split", "hola", rows), calib=1.0)
+    assert (split.oracle_s, split.pretrain_s, split.generation_s) == (50.0, 80.0, 70.0)
+    whole = cost_model.Measured.read(
+        write_run(
+            tmp_path / "whole",
+            "hola",
+            [{k: v for k, v in r.items() if k not in ("oracle_s", "pretrain_s")} for r in rows],
+        ),
+        calib=1.0,
+    )
+    assert (whole.oracle_s, whole.pretrain_s) == (None, None)
+    exp = ROOT / "configs" / "experiments" / "laptop-3v2.yaml"  # 1 M pre-training, 6 × 100 k
+    config = Experiment.from_yaml(exp).run_config("hola-s0")
+    got, upper = cost_model.trial_seconds(config, split), cost_model.trial_seconds(config, whole)
+    # 20 × the pre-training's 80 s plus the 20 s it did not spend pre-training
+    assert got["generation_0_s"] == pytest.approx(20 * 80 + 20)
+    assert upper["generation_0_s"] == pytest.approx(20 * 100)
+    # 100 k transitions a generation, as measured: 50 s of Oracle for 100 k, plus 20 s
+    assert got["generations_s"] == pytest.approx(6 * (50 * 100_000 / 100_000 + 20))
+    assert got["total_s"] <= upper["total_s"]
 
 
 def test_waves_schedule_the_longest_first():
