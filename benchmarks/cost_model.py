@@ -12,8 +12,9 @@ pre-training's time and env steps, and the mean wall time and Oracle time of a g
 ≥ 1 with its learner transitions. A trial of the experiment then costs
 
     start + generation 0 (its pre-training scaled by its env steps, the rest as measured)
-    + G × a generation (its Oracle scaled by the learner transitions per generation, the
-    rest — Grapher, validation, judges, commit — as measured),
+    + G × a generation (its Oracle scaled by what the experiment's `oracle.budget` counts,
+    the learner's transitions or env steps, per generation; the rest — Grapher,
+    validation, judges, commit — as measured),
 
 so a run measured at the experiment's own settings with fewer env steps (a shorter Oracle
 and pre-training) prices the full budget without scaling the per-generation work that does
@@ -61,6 +62,9 @@ class Measured:
     generation_s: float
     """mean wall time of a generation ≥ 1"""
     samples_per_generation: float
+    env_steps_per_generation: float = 0.0
+    """the env steps of a generation ≥ 1 (what a budget of `env_steps` counts; the learner's
+    own transitions, `samples_per_generation`, are what `learner_samples` counts)"""
     oracle_s: float | None = None
     """mean Oracle time of a generation ≥ 1 (the part that scales with the learner's
     transitions); None: not recorded, the whole generation scales"""
@@ -88,12 +92,15 @@ class Measured:
             return float(value) if value not in ("", None) else 0.0
 
         start = num(zero or later[0], "time_process_s")
-        samples, before = [], 0.0
-        for r in rows:
-            total = num(r, "learner_samples")
-            if int(r["generation"]) >= 1:
-                samples.append(total - before)
-            before = total
+
+        def per_generation(key: str) -> float:  # the mean increment of a cumulative column
+            steps, before = [], 0.0
+            for r in rows:
+                total = num(r, key)
+                if int(r["generation"]) >= 1:
+                    steps.append(total - before)
+                before = total
+            return sum(steps) / len(steps)
 
         def recorded(row: dict[str, str] | None, key: str) -> bool:
             return (row or {}).get(key, "") not in ("", None)
@@ -106,7 +113,8 @@ class Measured:
             zero_s=max(0.0, num(zero, "wall_s") - start) * calib,
             pretrain_env_steps=num(zero, "pretrain_env_steps"),
             generation_s=sum(num(r, "wall_s") for r in later) / len(later) * calib,
-            samples_per_generation=sum(samples) / len(samples),
+            samples_per_generation=per_generation("learner_samples"),
+            env_steps_per_generation=per_generation("env_steps"),
             oracle_s=sum(num(r, "oracle_s") for r in later) / len(later) * calib if split else None,
             pretrain_s=num(zero, "pretrain_s") * calib if recorded(zero, "pretrain_s") else None,
         )
@@ -121,7 +129,17 @@ def trial_seconds(config, basis: Measured) -> dict[str, float]:
         grows = basis.zero_s if basis.pretrain_s is None else min(basis.pretrain_s, basis.zero_s)
         zero = basis.zero_s - grows + grows * scale
     grows = basis.generation_s if basis.oracle_s is None else basis.oracle_s
-    scale = config.oracle.env_steps / basis.samples_per_generation
+    measured = (
+        basis.env_steps_per_generation
+        if config.oracle.budget == "env_steps"
+        else basis.samples_per_generation
+    )
+    if measured <= 0:
+        raise SystemExit(
+            f"{basis.path}: no {config.oracle.budget} recorded per generation, which "
+            "the experiment's oracle.budget counts"
+        )
+    scale = config.oracle.env_steps / measured
     per_generation = basis.generation_s - grows + grows * scale
     return {
         "start_s": basis.start_s,

@@ -96,6 +96,28 @@ def test_only_the_oracle_and_the_pretraining_scale_with_the_budget(tmp_path):
     assert got["total_s"] <= upper["total_s"]
 
 
+def test_the_oracle_scales_by_what_the_experiments_budget_counts(tmp_path):
+    """paper.yaml's budget counts env steps (1 M a generation), the 3 vs 2 comparison's the
+    learner's own transitions (1 M a generation): a run measured with both is scaled by each
+    experiment's own count."""
+    rows = [
+        {"generation": 0, "wall_s": 10, "env_steps": 0},
+        {"generation": 1, "wall_s": 30, "oracle_s": 20, "env_steps": 300, "learner_samples": 100},
+        {"generation": 2, "wall_s": 30, "oracle_s": 20, "env_steps": 600, "learner_samples": 200},
+    ]
+    run = cost_model.Measured.read(write_run(tmp_path / "hola", "hola", rows), calib=1.0)
+    assert (run.env_steps_per_generation, run.samples_per_generation) == (300.0, 100.0)
+    experiments = ROOT / "configs" / "experiments"
+    paper = Experiment.from_yaml(experiments / "paper.yaml").run_config("hola-s0")
+    assert (paper.oracle.budget, paper.oracle.env_steps) == ("env_steps", 1_000_000)
+    ours = Experiment.from_yaml(experiments / "comparison-3v2.yaml").run_config("hola-s1")
+    assert (ours.oracle.budget, ours.oracle.env_steps) == ("learner_samples", 1_000_000)
+    per_paper = cost_model.trial_seconds(paper, run)["generations_s"] / paper.generations
+    per_ours = cost_model.trial_seconds(ours, run)["generations_s"] / ours.generations
+    assert per_paper == pytest.approx(10 + 20 * 1_000_000 / 300)
+    assert per_ours == pytest.approx(10 + 20 * 1_000_000 / 100)
+
+
 def test_waves_schedule_the_longest_first():
     assert cost_model.waves([3, 3, 2, 2, 2], 2) == 7  # 3 + 2 + 2 on one slot, 3 + 2 on the other
     assert cost_model.waves([5, 1, 1, 1], 2) == 5
