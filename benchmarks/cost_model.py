@@ -62,6 +62,7 @@ class Measured:
     generation_s: float
     """mean wall time of a generation ≥ 1"""
     samples_per_generation: float
+    """mean learner transitions of a generation ≥ 1"""
     env_steps_per_generation: float = 0.0
     """the env steps of a generation ≥ 1 (what a budget of `env_steps` counts; the learner's
     own transitions, `samples_per_generation`, are what `learner_samples` counts)"""
@@ -71,7 +72,6 @@ class Measured:
     pretrain_s: float | None = None
     """generation 0's pre-training time (the part that scales with its env steps); None:
     not recorded, the whole of generation 0 scales"""
-    """mean learner transitions of a generation ≥ 1"""
 
     @classmethod
     def read(cls, path: Path, calib: float) -> Measured:
