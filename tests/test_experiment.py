@@ -397,3 +397,48 @@ def test_finished_trials_are_published_and_committed_one_by_one(tmp_path):
     assert publish.main([str(run), str(docs), "--commit", "--watch", "0.01"]) == 0
     assert log()[0] == "exp: sp-s0, results published (hola_ray.experiment.publish)"
     assert (docs / "results.json").read_text() == "{}"
+
+
+def test_the_builds_check_takes_each_build_as_one_observation():
+    from hola_ray.experiment.results import build_label, builds_check, builds_table
+
+    assert build_label("{kind}-3v2-s{seed%3}", 4) == "{kind}-3v2-s1"
+    assert build_label("mep-3v1-s{seed}", 2) == "mep-3v1-s2"
+    assert build_label("none", 4) is None
+    # twelve seeds on three builds (seed % 3); hola beside a build, sp beside none, fcp beside
+    # its own kind of the same build index; within a build the seeds differ by ±1 point
+    jitter = [0.01, -0.01, 0.005, -0.005]
+    by_build = {0: 0.20, 1: 0.0, 2: -0.10}  # a build that decides the difference
+    success, builds = {}, {}
+    for s in range(12):
+        diff = by_build[s % 3] + jitter[s // 3]
+        success[f"hola-s{s}"] = {"het": 0.5 + diff}
+        success[f"sp-s{s}"] = {"het": 0.5}
+        success[f"fcp-s{s}"] = {"het": 0.5 - diff}  # hola − fcp: twice hola − sp
+        builds[f"hola-s{s}"] = build_label("{kind}-3v2-s{seed%3}", s)
+        builds[f"fcp-s{s}"] = build_label("{kind}-3v2-s{seed%3}", s)
+        builds[f"sp-s{s}"] = build_label("none", s)
+    check = builds_check(success, [("hola", "sp"), ("hola", "fcp")], builds)
+    c = check["hola-sp"]["het"]
+    assert set(c["builds"]) == {"{kind}-3v2-s0", "{kind}-3v2-s1", "{kind}-3v2-s2"}
+    assert c["builds"]["{kind}-3v2-s0"]["seeds"] == 4
+    assert c["mean"] == pytest.approx(np.mean(list(by_build.values())), abs=1e-12)
+    assert c["p"] < 1e-6  # the builds differ far beyond the seeds' ±1 point
+    # over three builds the interval is wide (t on 2 degrees of freedom), where the seeds'
+    # own spread (12 seeds taken as independent) would give a narrow one
+    lo, hi = c["ci95"]
+    seed_diffs = [success[f"hola-s{s}"]["het"] - 0.5 for s in range(12)]
+    seed_half = 2.2 * np.std(seed_diffs, ddof=1) / np.sqrt(12)
+    assert lo < 0 < hi and (hi - lo) / 2 > 3 * seed_half
+    assert check["hola-fcp"]["het"]["mean"] == pytest.approx(2 * c["mean"])
+    # no build effect: the same jitter, every build alike, so F is small
+    for s in range(12):
+        success[f"hola-s{s}"] = {"het": 0.5 + 0.05 + jitter[s // 3]}
+    calm = builds_check(success, [("hola", "sp")], builds)["hola-sp"]["het"]
+    assert calm["p"] > 0.5 and calm["mean"] == pytest.approx(0.05)
+    assert "| hola-sp | het |" in builds_table({"hola-sp": {"het": calm}})
+    # one build for every seed, or no build at all: nothing to check
+    single = {t: "mep-3v1-s0" for t in builds}
+    assert builds_check(success, [("hola", "sp")], single) == {}
+    assert builds_check(success, [("hola", "sp")], dict.fromkeys(builds)) == {}
+    assert builds_table({}) == ""

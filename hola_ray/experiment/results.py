@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -109,6 +110,106 @@ def results_table(
                 if m == "success":
                     cells.append(f"{DETECTABLE * d['se']:.1%}")
             lines.append(f"| {pair} | {pool} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def build_label(population: str, seed: int) -> str | None:
+    """The population build a trial of `seed` trains beside, kind aside: the
+    `pretrain.population` template with its seed filled in (`{kind}-3v2-s{seed%3}` at seed 4
+    reads `{kind}-3v2-s1`, the same build index for hola's MEP and fcp's FCP population);
+    None for a method with no population (`none`)."""
+    if population in ("", "none", None):
+        return None
+    text = str(population).replace("{seed}", str(seed))
+    return re.sub(r"\{seed%(\d+)\}", lambda m: str(seed % int(m[1])), text)
+
+
+def builds_check(
+    success: Mapping[str, Mapping[str, float]],
+    pairs: Sequence[tuple[str, str]],
+    build_of: Mapping[str, str | None],
+) -> dict[str, dict[str, dict[str, Any]]]:
+    """The population builds as the unit, a check beside the seeds' bootstrap (which takes
+    the seeds as independent, while seeds of one build share it). Per pair "A-B" and pool:
+    the paired success differences of the seeds both methods ran, grouped by the build
+    their seed trains beside (`build_of[trial]`, A's and B's together); each build's mean;
+    the mean of the build means with a t-interval on k − 1 degrees of freedom (k builds,
+    each one observation: every source of noise below a build is inside its mean); and a
+    one-way analysis of variance, F = between-build over within-build mean square with its
+    p-value: a small p says the builds differ beyond what the seeds' spread explains, and
+    then the builds' interval, not the seeds', is the honest one. Pairs whose seeds fall in
+    fewer than two builds, or one seed a build, are left out. `success[trial][pool]`: the
+    trial's mean success."""
+    from scipy import stats
+
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    for a, b in pairs:
+        seeds = {parse_trial(t)[1] for t in success if parse_trial(t)[0] == a} & {
+            parse_trial(t)[1] for t in success if parse_trial(t)[0] == b
+        }
+        for pool in sorted({p for t in success for p in success[t]}):
+            groups: dict[str, list[float]] = {}
+            for s in sorted(seeds):
+                ta, tb = f"{a}-s{s}", f"{b}-s{s}"
+                if pool not in success[ta] or pool not in success[tb]:
+                    continue
+                labels = [x for x in (build_of.get(ta), build_of.get(tb)) if x is not None]
+                if not labels:
+                    continue
+                label = " & ".join(dict.fromkeys(labels))
+                groups.setdefault(label, []).append(success[ta][pool] - success[tb][pool])
+            k = len(groups)
+            n = sum(len(g) for g in groups.values())
+            if k < 2 or n == k:
+                continue
+            means = np.array([np.mean(g) for g in groups.values()])
+            grand = float(means.mean())
+            se = float(means.std(ddof=1) / np.sqrt(k))
+            half = float(stats.t.ppf(0.975, k - 1)) * se
+            overall = float(np.mean([x for g in groups.values() for x in g]))
+            between = sum(len(g) * (np.mean(g) - overall) ** 2 for g in groups.values()) / (k - 1)
+            within = sum(((np.asarray(g) - np.mean(g)) ** 2).sum() for g in groups.values())
+            within /= n - k
+            f_stat = float(between / within) if within > 0 else float("inf")
+            out.setdefault(f"{a}-{b}", {})[pool] = {
+                "builds": {
+                    label: {"seeds": len(g), "mean": float(np.mean(g))}
+                    for label, g in groups.items()
+                },
+                "mean": grand,
+                "se": se,
+                "ci95": [grand - half, grand + half],
+                "F": f_stat,
+                "p": float(stats.f.sf(f_stat, k - 1, n - k)) if within > 0 else 0.0,
+            }
+    return out
+
+
+def builds_table(check: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> str:
+    """results.md's section on `builds_check`."""
+    if not check:
+        return ""
+    lines = [
+        "",
+        "The population builds as the unit (a check beside the seeds' bootstrap above, "
+        "which takes seeds of one build as independent): each build's mean paired success "
+        "difference, the mean of the build means with a t-interval over builds [95 %], and "
+        "the F test of whether builds differ beyond the seeds' spread (a small p: trust the "
+        "builds' interval).",
+        "",
+        "| A − B | pool | per build | over builds | F (p) |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for pair, by_pool in check.items():
+        for pool, c in by_pool.items():
+            per = ", ".join(
+                f"{label} {x['mean']:+.1%} (n {x['seeds']})" for label, x in c["builds"].items()
+            )
+            lo, hi = c["ci95"]
+            lines.append(
+                f"| {pair} | {pool} | {per} | {c['mean']:+.1%} [{lo:+.1%}, {hi:+.1%}] "
+                f"| {c['F']:.2f} ({c['p']:.2f}) |"
+            )
     return "\n".join(lines) + "\n"
 
 

@@ -15,6 +15,9 @@ from hola_ray.experiment.results import (
     EVALUATION_FORMAT,
     _atomic_json,
     aggregate,
+    build_label,
+    builds_check,
+    builds_table,
     results_table,
 )
 from hola_ray.experiment.tasks import MARK, _evaluate_trial, _reference, _run_trial, trial_state
@@ -351,6 +354,14 @@ class Runner:
         from hola_ray.evaluation.report import plot
 
         methods, differences = aggregate(per_trial, list(self.exp.methods), self.exp.pairs())
+        builds = builds_check(
+            {t: {p: r["success"] for p, r in pools_.items()} for t, pools_ in per_trial.items()},
+            self.exp.pairs(),
+            {
+                t: build_label(self.configs[t].pretrain.population, parse_trial(t)[1])
+                for t in per_trial
+            },
+        )
         trials = {
             t: {
                 "method": parse_trial(t)[0],
@@ -377,6 +388,7 @@ class Runner:
             "trials": trials,
             "methods": methods,
             "differences": differences,
+            "builds": builds,
             "intervals": "95 %, stratified bootstrap: training seeds within each method, "
             "one resample shared by methods with the same seeds (paired by seed), episodes "
             "within each partner combination, shared by every trial (paired)",
@@ -400,7 +412,9 @@ class Runner:
             else ""
         )
         (self.out / "results.md").write_text(
-            results_table(figure_input, differences, len(self.exp.seeds)) + note
+            results_table(figure_input, differences, len(self.exp.seeds))
+            + builds_table(builds)
+            + note
         )
         return results
 
