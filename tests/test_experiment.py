@@ -442,3 +442,12 @@ def test_the_builds_check_takes_each_build_as_one_observation():
     assert builds_check(success, [("hola", "sp")], single) == {}
     assert builds_check(success, [("hola", "sp")], dict.fromkeys(builds)) == {}
     assert builds_table({}) == ""
+    # every seed of a build alike: F is finite (results.json is JSON), p near 0 or 1
+    flat = {
+        t: {"het": 0.5 + (0.1 if t.startswith("hola") and int(t[6:]) % 3 == 0 else 0.0)}
+        for t in success
+    }
+    assert builds_check(flat, [("hola", "sp")], builds)["hola-sp"]["het"]["p"] < 1e-12
+    same = {t: {"het": 0.5} for t in success}
+    assert builds_check(same, [("hola", "sp")], builds)["hola-sp"]["het"]["p"] == 1.0
+    json.dumps(builds_check(flat, [("hola", "sp")], builds), allow_nan=False)

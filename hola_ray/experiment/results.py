@@ -170,7 +170,8 @@ def builds_check(
             between = sum(len(g) * (np.mean(g) - overall) ** 2 for g in groups.values()) / (k - 1)
             within = sum(((np.asarray(g) - np.mean(g)) ** 2).sum() for g in groups.values())
             within /= n - k
-            f_stat = float(between / within) if within > 0 else float("inf")
+            # seeds alike within every build: any spread between builds is theirs alone
+            f_stat = float(between / within) if within > 0 else (1e9 if between > 0 else 0.0)
             out.setdefault(f"{a}-{b}", {})[pool] = {
                 "builds": {
                     label: {"seeds": len(g), "mean": float(np.mean(g))}
@@ -180,7 +181,7 @@ def builds_check(
                 "se": se,
                 "ci95": [grand - half, grand + half],
                 "F": f_stat,
-                "p": float(stats.f.sf(f_stat, k - 1, n - k)) if within > 0 else 0.0,
+                "p": float(stats.f.sf(f_stat, k - 1, n - k)),
             }
     return out
 
