@@ -142,11 +142,13 @@ def builds_check(
     trial's mean success."""
     from scipy import stats
 
+    seeds_of: dict[str, set[int]] = {}
+    for t in success:
+        method, seed = parse_trial(t)
+        seeds_of.setdefault(method, set()).add(seed)
     out: dict[str, dict[str, dict[str, Any]]] = {}
     for a, b in pairs:
-        seeds = {parse_trial(t)[1] for t in success if parse_trial(t)[0] == a} & {
-            parse_trial(t)[1] for t in success if parse_trial(t)[0] == b
-        }
+        seeds = seeds_of.get(a, set()) & seeds_of.get(b, set())
         for pool in sorted({p for t in success for p in success[t]}):
             groups: dict[str, list[float]] = {}
             for s in sorted(seeds):
@@ -163,19 +165,23 @@ def builds_check(
             if k < 2 or n == k:
                 continue
             means = np.array([np.mean(g) for g in groups.values()])
+            sizes = np.array([len(g) for g in groups.values()])
             grand = float(means.mean())
             se = float(means.std(ddof=1) / np.sqrt(k))
             half = float(stats.t.ppf(0.975, k - 1)) * se
-            overall = float(np.mean([x for g in groups.values() for x in g]))
-            between = sum(len(g) * (np.mean(g) - overall) ** 2 for g in groups.values()) / (k - 1)
-            within = sum(((np.asarray(g) - np.mean(g)) ** 2).sum() for g in groups.values())
+            overall = float((sizes * means).sum() / n)
+            between = float((sizes * (means - overall) ** 2).sum()) / (k - 1)
+            within = sum(
+                float(((np.asarray(g) - m) ** 2).sum())
+                for g, m in zip(groups.values(), means, strict=True)
+            )
             within /= n - k
             # seeds alike within every build: any spread between builds is theirs alone
             f_stat = float(between / within) if within > 0 else (1e9 if between > 0 else 0.0)
             out.setdefault(f"{a}-{b}", {})[pool] = {
                 "builds": {
-                    label: {"seeds": len(g), "mean": float(np.mean(g))}
-                    for label, g in groups.items()
+                    label: {"seeds": len(g), "mean": float(m)}
+                    for (label, g), m in zip(groups.items(), means, strict=True)
                 },
                 "mean": grand,
                 "se": se,
