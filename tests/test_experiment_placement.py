@@ -237,6 +237,36 @@ def test_a_directory_is_mirrored_change_by_change_and_packs_whole(tmp_path):
     assert files(copy) == files(source)
 
 
+@pytest.mark.parametrize("filters", [True, False], ids=["filters", "python-3.11.2"])
+def test_unpack_writes_plain_files_and_refuses_a_path_out_of_its_root(
+    tmp_path, monkeypatch, filters
+):
+    """With tarfile's extraction filters (Python >= 3.11.4) or without them (3.11.2, where
+    `filter=` is a TypeError): the packed files come back, a member aimed outside is refused."""
+    import io
+    import tarfile
+
+    from hola_ray.experiment.mirror import pack, unpack
+
+    if not filters:
+        monkeypatch.delattr(tarfile, "data_filter", raising=False)
+    source = tmp_path / "source"
+    (source / "gen_0000").mkdir(parents=True)
+    (source / "gen_0000" / "state.json").write_text("{}")
+    (source / "learner.pt").write_bytes(b"weights")
+    unpack(pack(source), tmp_path / "copy")
+    assert files(tmp_path / "copy") == files(source)
+
+    evil = io.BytesIO()
+    with tarfile.open(fileobj=evil, mode="w:gz") as tar:
+        info = tarfile.TarInfo("../outside.txt")
+        info.size = 3
+        tar.addfile(info, io.BytesIO(b"bad"))
+    with pytest.raises(tarfile.TarError):
+        unpack(evil.getvalue(), tmp_path / "copy2")
+    assert not (tmp_path / "outside.txt").exists()
+
+
 def test_a_partial_trial_on_a_node_without_the_directory_resumes_and_mirrors_it(
     tmp_path, smoke_run
 ):

@@ -146,4 +146,15 @@ def unpack(data: bytes, root: Path) -> None:
     shutil.rmtree(root, ignore_errors=True)
     root.mkdir(parents=True)
     with tarfile.open(fileobj=io.BytesIO(data), mode="r:gz") as tar:
-        tar.extractall(root, filter="data")
+        if hasattr(tarfile, "data_filter"):
+            tar.extractall(root, filter="data")
+        else:  # Python 3.11.0-3.11.3 (Debian 12's 3.11.2) has no filters: the same refusal
+            for member in tar.getmembers():
+                name = PurePosixPath(member.name)
+                if (
+                    not (member.isfile() or member.isdir())
+                    or name.is_absolute()
+                    or ".." in name.parts
+                ):
+                    raise tarfile.TarError(f"unpack: refusing {member.name!r} (not a plain file)")
+            tar.extractall(root)
