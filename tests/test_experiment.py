@@ -399,6 +399,38 @@ def test_finished_trials_are_published_and_committed_one_by_one(tmp_path):
     assert (docs / "results.json").read_text() == "{}"
 
 
+def test_the_verdict_is_one_sentence_by_the_rule_fixed_before_the_runs():
+    """hola − X with HeT: ahead or behind where the interval excludes 0, else a tie; the
+    design's goal (every interval not above zero at most 12 points wide) said either way."""
+    from hola_ray.experiment.results import DETECTABLE, verdict_sentence
+
+    def diff(mean, lo, hi, se=0.02):
+        return {"het": {"success": {"mean": mean, "ci95": [lo, hi], "se": se}}}
+
+    differences = {
+        "hola-sp": diff(0.11, 0.03, 0.19),
+        "hola-fcp": diff(-0.09, -0.15, -0.02),
+        "hola-mep": diff(0.01, -0.04, 0.06, se=0.025),
+        "fcp-sp": diff(0.5, 0.4, 0.6),  # not hola's: not in the verdict
+    }
+    v = verdict_sentence(differences, "hola")
+    assert (v["ahead"], v["behind"], v["tie"]) == (["sp"], ["fcp"], ["mep"])
+    said = v["sentence"]
+    assert said.startswith("With HeT teammates, hola's success is ahead of sp (+11.0 [+3.0, +19")
+    assert "behind fcp (-9.0 [-15.0, -2.0])" in said and "tied with mep (+1.0" in said
+    assert "fcp-sp" not in said and "the design detects 5.6–7.0 points" in said
+    assert v["detectable"] == pytest.approx([DETECTABLE * 0.02, DETECTABLE * 0.025])
+    # fcp's interval (13 points) is the widest of those not above zero: over the 12 aimed at
+    assert v["widest_not_ahead"] == pytest.approx(0.13) and not v["design_met"]
+    assert "wider than the 12 the design aimed at" in said
+    narrow = verdict_sentence({"hola-sp": diff(0.02, -0.04, 0.08)}, "hola")  # 12.0 points
+    assert narrow["design_met"] and narrow["tie"] == ["sp"] and "ahead" not in narrow["sentence"]
+    assert (
+        "detects 5.6 points" in narrow["sentence"] and "at most 12.0 points" in narrow["sentence"]
+    )
+    assert verdict_sentence(differences, "hola", pool="hot") == {}  # no such pool: nothing
+
+
 def test_the_builds_check_takes_each_build_as_one_observation():
     from hola_ray.experiment.results import build_label, builds_check, builds_table
 

@@ -113,6 +113,76 @@ def results_table(
     return "\n".join(lines) + "\n"
 
 
+POOL_NAMES = {"het": "HeT", "hot": "HoT"}
+
+GOAL_WIDTH = 0.12
+"""issue 47's design goal: a hola − X success interval with HeT that is not above zero is at
+most 12 points wide"""
+
+
+def verdict_sentence(
+    differences: Mapping[str, Mapping[str, Mapping[str, Any]]],
+    method: str,
+    pool: str = "het",
+    metric: str = "success",
+) -> dict[str, Any]:
+    """The verdict fixed before the experiment (docs/comparison-3v2.md, "The analysis"), in
+    one sentence: `method` − X on `metric` with `pool` is ahead (or behind) where its 95 %
+    interval excludes 0, else a tie, for every X it is paired with; beside it the smallest
+    difference the design detects and whether every interval not above zero is at most
+    `GOAL_WIDTH` wide. None of it depends on which way the figures fall."""
+    from hola_ray.evaluation.compare import HIGHER_IS_BETTER, verdict
+
+    words: dict[str, list[str]] = {"ahead": [], "behind": [], "tie": []}
+    detect, widths = [], []
+    for pair, by_pool in differences.items():
+        a, b = pair.split("-", 1)
+        if a != method or metric not in by_pool.get(pool, {}):
+            continue
+        d = by_pool[pool][metric]
+        lo, hi = d["ci95"]
+        word = verdict(d, HIGHER_IS_BETTER[metric])
+        words[word].append(f"{b} ({d['mean'] * 100:+.1f} [{lo * 100:+.1f}, {hi * 100:+.1f}])")
+        detect.append(DETECTABLE * d["se"])
+        if not lo > 0:
+            widths.append(hi - lo)
+    if not detect:
+        return {}
+    parts = []
+    if words["ahead"]:
+        parts.append("ahead of " + ", ".join(words["ahead"]))
+    if words["behind"]:
+        parts.append("behind " + ", ".join(words["behind"]))
+    if words["tie"]:
+        parts.append("tied with " + ", ".join(words["tie"]))
+    widest = max(widths, default=0.0)
+    met = round(widest * 100, 1) <= GOAL_WIDTH * 100  # as written, to a tenth of a point
+    low, high = (f"{x * 100:.1f}" for x in (min(detect), max(detect)))
+    sentence = (
+        f"With {POOL_NAMES.get(pool, pool)} teammates, {method}'s {metric} is "
+        + "; ".join(parts)
+        + f" ({method} − X in points [95 %]); the design detects "
+        + (low if low == high else f"{low}–{high}")
+        + " points at 80 % power, and "
+        + (
+            f"every interval not above zero is at most {widest * 100:.1f} points wide"
+            if met
+            else f"the widest interval not above zero is {widest * 100:.1f} points, "
+            f"wider than the {GOAL_WIDTH * 100:.0f} the design aimed at"
+        )
+        + "."
+    )
+    return {
+        "sentence": sentence,
+        "pool": pool,
+        "metric": metric,
+        **{w: [x.split(" ")[0] for x in xs] for w, xs in words.items()},
+        "detectable": [float(min(detect)), float(max(detect))],
+        "widest_not_ahead": float(widest),
+        "design_met": bool(met),
+    }
+
+
 def build_label(population: str, seed: int) -> str | None:
     """The population build a trial of `seed` trains beside, kind aside: the
     `pretrain.population` template with its seed filled in (`{kind}-3v2-s{seed%3}` at seed 4

@@ -19,6 +19,7 @@ from hola_ray.experiment.results import (
     builds_check,
     builds_table,
     results_table,
+    verdict_sentence,
 )
 from hola_ray.experiment.tasks import MARK, _evaluate_trial, _reference, _run_trial, trial_state
 
@@ -389,6 +390,9 @@ class Runner:
             "methods": methods,
             "differences": differences,
             "builds": builds,
+            "verdict": verdict_sentence(differences, self.exp.pairs()[0][0])
+            if self.exp.pairs()
+            else {},
             "intervals": "95 %, stratified bootstrap: training seeds within each method, "
             "one resample shared by methods with the same seeds (paired by seed), episodes "
             "within each partner combination, shared by every trial (paired)",
@@ -411,8 +415,10 @@ class Runner:
             if same
             else ""
         )
+        said = results["verdict"].get("sentence")
         (self.out / "results.md").write_text(
-            results_table(figure_input, differences, len(self.exp.seeds))
+            (f"**Verdict** (the rule fixed before the runs): {said}\n\n" if said else "")
+            + results_table(figure_input, differences, len(self.exp.seeds))
             + builds_table(builds)
             + note
         )
