@@ -399,6 +399,19 @@ def test_finished_trials_are_published_and_committed_one_by_one(tmp_path):
     assert (docs / "results.json").read_text() == "{}"
 
 
+def test_the_progress_line_says_the_time_left_at_this_runs_pace():
+    from hola_ray.experiment.runner import time_left
+
+    assert time_left(0.0, 0, 80) is None  # nothing trained yet in this run: no pace
+    assert time_left(900.0, 12, 0) is None  # nothing left
+    # 12 generations in 15 min: 75 s each, 560 more take 11.7 h
+    said = time_left(900.0, 12, 560)
+    assert said == "about 11.7 h of training left (this run: 12 generations in 15 min)"
+    assert (
+        time_left(120.0, 1, 9) == "about 18 min of training left (this run: 1 generation in 2 min)"
+    )
+
+
 def test_the_verdict_is_one_sentence_by_the_rule_fixed_before_the_runs():
     """hola − X with HeT: ahead or behind where the interval excludes 0, else a tie; the
     design's goal (every interval not above zero at most 12 points wide) said either way."""

@@ -53,6 +53,23 @@ def node_lost(err: BaseException) -> bool:
     return False
 
 
+def time_left(elapsed_s: float, trained: int, left: int) -> str | None:
+    """'about 9.5 h of training left (this run: 12 generations in 15 min)': the generations
+    still to train at the pace of those trained since this run started; None before its
+    first. A generation counts alike whatever its method (generation 0's pre-training and
+    FCP's agents aside), so it is a pace, not a promise."""
+    if trained <= 0 or left <= 0:
+        return None
+
+    def span(s: float) -> str:
+        return f"{s / 3600:.1f} h" if s >= 5400 else f"{max(1, round(s / 60))} min"
+
+    return (
+        f"about {span(elapsed_s / trained * left)} of training left "
+        f"(this run: {trained} generation{'s' if trained > 1 else ''} in {span(elapsed_s)})"
+    )
+
+
 class Runner:
     """Runs an experiment's trials as Ray tasks, evaluates them and writes the results."""
 
@@ -71,6 +88,8 @@ class Runner:
         self.mirror: bool | None = None
         """None: each trial mirrors its folder to this node if its own node cannot see
         DIR (`sees`); True / False: always / never"""
+        self.pace: tuple[float, int] | None = None
+        """(when, generations trained) at the first progress view: the pace is this run's"""
 
     def mirror_of(self, trial: str) -> bool | None:
         """Whether `trial` mirrors its folder (`mirror`; a subclass may decide per trial)."""
@@ -275,6 +294,17 @@ class Runner:
             rows[t] = {"status": status, "generation": last, "generations": total}
         _atomic_json(self.out / "progress.json", rows)
         counts = {k: sum(r["status"] == k for r in rows.values()) for k in ("done", "running")}
+        trained = sum(
+            r["generations"] if r["status"] == "done" else (r["generation"] or 0)
+            for r in rows.values()
+        )
+        now = time.monotonic()
+        self.pace = self.pace or (now, trained)
+        left = time_left(
+            now - self.pace[0],
+            trained - self.pace[1],
+            sum(r["generations"] for r in rows.values()) - trained,
+        )
         busy = ", ".join(
             f"{t} gen {rows[t]['generation'] if rows[t]['generation'] is not None else '-'}"
             f"/{rows[t]['generations']}"
@@ -286,6 +316,7 @@ class Runner:
             + (f"{len(placing)} waiting for CPUs ({', '.join(placing)}), " if placing else "")
             + f"{len(waiting)} waiting"
             + (f", {len(failed)} failed" if failed else "")
+            + (f"; {left}" if left else "")
         )
 
     # ---- phase 2: evaluation ----------------------------------------------------------------
