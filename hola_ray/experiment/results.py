@@ -134,6 +134,7 @@ def verdict_sentence(
     from hola_ray.evaluation.compare import HIGHER_IS_BETTER, verdict
 
     words: dict[str, list[str]] = {"ahead": [], "behind": [], "tie": []}
+    names: dict[str, list[str]] = {w: [] for w in words}
     detect, widths = [], []
     for pair, by_pool in differences.items():
         a, b = pair.split("-", 1)
@@ -143,6 +144,7 @@ def verdict_sentence(
         lo, hi = d["ci95"]
         word = verdict(d, HIGHER_IS_BETTER[metric])
         words[word].append(f"{b} ({d['mean'] * 100:+.1f} [{lo * 100:+.1f}, {hi * 100:+.1f}])")
+        names[word].append(b)
         detect.append(DETECTABLE * d["se"])
         if not lo > 0:
             widths.append(hi - lo)
@@ -176,7 +178,7 @@ def verdict_sentence(
         "sentence": sentence,
         "pool": pool,
         "metric": metric,
-        **{w: [x.split(" ")[0] for x in xs] for w, xs in words.items()},
+        **names,
         "detectable": [float(min(detect)), float(max(detect))],
         "widest_not_ahead": float(widest),
         "design_met": bool(met),
