@@ -20,6 +20,10 @@ PANELS = {
 """Fig. 4's three columns, then AT-Drone's two"""
 
 
+POOL_LABELS = {"hot": "HoT", "het": "HeT"}
+"""the pools as the paper names them"""
+
+
 def table_lines(results: Mapping[str, Mapping[str, Mapping[str, Any]]], first: str) -> list[str]:
     """A markdown table of every learner's (method's) figures with their 95 % intervals."""
 
@@ -59,7 +63,7 @@ def plot(results: Mapping[str, Mapping[str, Mapping[str, Any]]], out: Path) -> t
     fig, axes = plt.subplots(
         len(pool_names), len(PANELS), figsize=(17, 3.2 * len(pool_names)), squeeze=False
     )
-    labels = {"hot": "HoT", "het": "HeT"}
+    labels = POOL_LABELS
     colors = plt.cm.tab10(np.arange(len(names)) % 10)
     for i, pool in enumerate(pool_names):
         for j, (m, title) in enumerate(PANELS.items()):

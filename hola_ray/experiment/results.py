@@ -113,8 +113,6 @@ def results_table(
     return "\n".join(lines) + "\n"
 
 
-POOL_NAMES = {"het": "HeT", "hot": "HoT"}
-
 GOAL_WIDTH = 0.12
 """issue 47's design goal: a hola − X success interval with HeT that is not above zero is at
 most 12 points wide"""
@@ -132,9 +130,9 @@ def verdict_sentence(
     difference the design detects and whether every interval not above zero is at most
     `GOAL_WIDTH` wide. None of it depends on which way the figures fall."""
     from hola_ray.evaluation.compare import HIGHER_IS_BETTER, verdict
+    from hola_ray.evaluation.report import POOL_LABELS
 
-    words: dict[str, list[str]] = {"ahead": [], "behind": [], "tie": []}
-    names: dict[str, list[str]] = {w: [] for w in words}
+    named: dict[str, dict[str, str]] = {"ahead": {}, "behind": {}, "tie": {}}  # X → its figures
     detect, widths = [], []
     for pair, by_pool in differences.items():
         a, b = pair.split("-", 1)
@@ -143,25 +141,22 @@ def verdict_sentence(
         d = by_pool[pool][metric]
         lo, hi = d["ci95"]
         word = verdict(d, HIGHER_IS_BETTER[metric])
-        words[word].append(f"{b} ({d['mean'] * 100:+.1f} [{lo * 100:+.1f}, {hi * 100:+.1f}])")
-        names[word].append(b)
+        named[word][b] = f"{d['mean'] * 100:+.1f} [{lo * 100:+.1f}, {hi * 100:+.1f}]"
         detect.append(DETECTABLE * d["se"])
         if not lo > 0:
             widths.append(hi - lo)
     if not detect:
         return {}
-    parts = []
-    if words["ahead"]:
-        parts.append("ahead of " + ", ".join(words["ahead"]))
-    if words["behind"]:
-        parts.append("behind " + ", ".join(words["behind"]))
-    if words["tie"]:
-        parts.append("tied with " + ", ".join(words["tie"]))
+    parts = [
+        lead + ", ".join(f"{x} ({figures})" for x, figures in named[word].items())
+        for word, lead in (("ahead", "ahead of "), ("behind", "behind "), ("tie", "tied with "))
+        if named[word]
+    ]
     widest = max(widths, default=0.0)
     met = round(widest * 100, 1) <= GOAL_WIDTH * 100  # as written, to a tenth of a point
     low, high = (f"{x * 100:.1f}" for x in (min(detect), max(detect)))
     sentence = (
-        f"With {POOL_NAMES.get(pool, pool)} teammates, {method}'s {metric} is "
+        f"With {POOL_LABELS.get(pool, pool)} teammates, {method}'s {metric} is "
         + "; ".join(parts)
         + f" ({method} − X in points [95 %]); the design detects "
         + (low if low == high else f"{low}–{high}")
@@ -178,7 +173,7 @@ def verdict_sentence(
         "sentence": sentence,
         "pool": pool,
         "metric": metric,
-        **names,
+        **{word: list(xs) for word, xs in named.items()},
         "detectable": [float(min(detect)), float(max(detect))],
         "widest_not_ahead": float(widest),
         "design_met": bool(met),
