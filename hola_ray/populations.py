@@ -206,7 +206,7 @@ def build(name: str, episodes: int, progress: bool = True, carry: bool = False) 
     built = {
         k: gen0[k] for k in ("pretrain_env_steps", "pretrain_s", "pretrain_competent") if k in gen0
     }
-    if run.pretrain.joinpath(PROGRESS).is_file():  # every check up to the last one saved
+    if run.pretrain.joinpath(PROGRESS).is_file():  # every check, the deciding one included
         built["checks"] = json.loads(run.pretrain.joinpath(PROGRESS).read_text()).get("checks", [])
     out = POPULATIONS_DIR / name
     package(

@@ -200,8 +200,9 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
         metrics["pretrain_resumed_at"] = done
         trainer.say(f"pre-train: resumed after {done:,} env steps ({trainer.run.pretrain})")
     resumed = done
-    try:
-        while done < p.env_steps:
+    in_a_row = passing_in_a_row(checks, p.until_success, p.until_collision) if p.until else 0
+    try:  # a build stopped after its deciding check (while judging G_0) trains no more
+        while done < p.env_steps and not (p.until and in_a_row >= p.until_in_a_row):
             if bonus_ends(done) and mep.seating.mep_alpha > 0:
                 states = mep.weights(mep.members)
                 mep.stop()
@@ -226,10 +227,6 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
                     "collision": [round(f["collision"], 4) for f in figures],
                 }
             )
-            metrics |= {
-                "pretrain_members_success_min": round(min(f["success"] for f in figures), 4),
-                "pretrain_members_collision_max": round(max(f["collision"] for f in figures), 4),
-            }
             trainer.say(
                 f"pre-train: {done:,} env steps; members as copies: success "
                 + ", ".join(f"{f['success']:.0%}" for f in figures)
@@ -239,33 +236,38 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
             in_a_row = passing_in_a_row(checks, p.until_success, p.until_collision)
             if 0 < in_a_row < p.until_in_a_row:
                 trainer.say(f"pre-train: every member competent, {in_a_row} check(s) in a row")
-            if in_a_row >= p.until_in_a_row:
-                stop = f"competent after {done:,} env steps"
-                if p.until_in_a_row > 1:
-                    stop += f" ({in_a_row} checks in a row)"
-                break
-            if done < p.env_steps:  # a stopped build resumes here (a check's worth at most lost)
-                trainer.run.save_pretrain(
-                    mep.weights(mep.members),
-                    {
-                        "members": mep.members,
-                        "env_steps": done,
-                        "judge_s": judge_s,
-                        "checks": checks,
-                    },
-                )
+            # a stopped build resumes here (a check's worth at most lost); the last save
+            # holds every check, the deciding one included, for the manifest
+            trainer.run.save_pretrain(
+                mep.weights(mep.members),
+                {"members": mep.members, "env_steps": done, "judge_s": judge_s, "checks": checks},
+            )
+        if p.until and in_a_row >= p.until_in_a_row:
+            stop = f"competent after {done:,} env steps"
+            if p.until_in_a_row > 1:
+                stop += f" ({in_a_row} checks in a row)"
         else:
             stop = f"{p.env_steps:,} env steps" + (", not all competent" if p.until else "")
         states = mep.weights(mep.members)
     finally:
         mep.stop()
+    if checks:  # the last check's, whether judged in this process or before a stop
+        metrics |= {
+            "pretrain_members_success_min": min(checks[-1]["success"]),
+            "pretrain_members_collision_max": max(checks[-1]["collision"]),
+        }
     if p.until:
         metrics |= {
             "pretrain_competent": float(stop.startswith("competent")),
             "pretrain_judge_s": round(judge_s, 2),
         }
     said = f"pre-trained {n} members {how} ({scheme}; {stop})"
-    stats = summed(parts)
+    if parts:
+        stats = summed(parts)
+    else:  # resumed after its deciding check: nothing trained in this process
+        from hola_ray.oracle.trainer import TrainStats
+
+        stats = TrainStats(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
     if resumed:  # the env steps before the resume count too
         stats = dataclasses.replace(stats, env_steps=stats.env_steps + resumed)
     return Built([states[m] for m in mep.members], stats, said, metrics)

@@ -244,6 +244,28 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     assert said.count("every member competent, 1 check(s) in a row") == 2
     (row,) = RunDir(tmp_path / "twice").metrics_rows()
     assert 5000 <= row["pretrain_env_steps"] < 6000
+    # the saved progress holds every check, the deciding 5th included (the manifest's record)
+    _, progress = RunDir(tmp_path / "twice").load_pretrain()
+    assert [c["env_steps"] for c in progress["checks"]][-1] == row["pretrain_env_steps"]
+    assert len(progress["checks"]) == 5 and progress["checks"][-1]["success"][0] == 0.9
+
+    # stopped after its deciding check (before G_0 was weighed): resumed, it trains no more
+    judged.clear()
+    real_summed = base.summed
+
+    def stop_after_the_checks(parts):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(base, "summed", stop_after_the_checks)
+    with pytest.raises(KeyboardInterrupt):
+        train(smoke | {"generations": 0, "pretrain": twice}, tmp_path / "decided", capsys)
+    monkeypatch.setattr(base, "summed", real_summed)
+    assert len(judged) == 5
+    said = train(smoke | {"generations": 0, "pretrain": twice}, tmp_path / "decided", capsys)
+    assert len(judged) == 5 and "members as copies: success" not in said
+    assert "(2 checks in a row)" in said
+    (row,) = RunDir(tmp_path / "decided").metrics_rows()
+    assert row["pretrain_competent"] == 1 and row["pretrain_members_success_min"] == 0.9
     assert (
         base.passing_in_a_row(
             [{"success": [0.9], "collision": [0.1]}, {"success": [0.5], "collision": [0.1]}]
