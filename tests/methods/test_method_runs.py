@@ -5,6 +5,7 @@ calls; the CLI around it is tested in tests/test_run.py)."""
 
 from __future__ import annotations
 
+import shutil
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -249,22 +250,14 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     assert [c["env_steps"] for c in progress["checks"]][-1] == row["pretrain_env_steps"]
     assert len(progress["checks"]) == 5 and progress["checks"][-1]["success"][0] == 0.9
 
-    # stopped after its deciding check (before G_0 was weighed): resumed, it trains no more
-    judged.clear()
-    real_summed = base.summed
-
-    def stop_after_the_checks(parts):
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(base, "summed", stop_after_the_checks)
-    with pytest.raises(KeyboardInterrupt):
-        train(smoke | {"generations": 0, "pretrain": twice}, tmp_path / "decided", capsys)
-    monkeypatch.setattr(base, "summed", real_summed)
-    assert len(judged) == 5
-    said = train(smoke | {"generations": 0, "pretrain": twice}, tmp_path / "decided", capsys)
+    # a build stopped after its deciding check, before G_0 was weighed (its pre-training
+    # saved, nothing else): resumed, it trains no more
+    decided = RunDir(tmp_path / "decided")
+    shutil.copytree(RunDir(tmp_path / "twice").pretrain, decided.pretrain)
+    said = train(smoke | {"generations": 0, "pretrain": twice}, decided.root, capsys)
     assert len(judged) == 5 and "members as copies: success" not in said
     assert "(2 checks in a row)" in said
-    (row,) = RunDir(tmp_path / "decided").metrics_rows()
+    (row,) = decided.metrics_rows()
     assert row["pretrain_competent"] == 1 and row["pretrain_members_success_min"] == 0.9
     assert (
         base.passing_in_a_row(
