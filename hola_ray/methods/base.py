@@ -267,7 +267,7 @@ def pretrain_population(trainer: Trainer, alpha: float, how: str, scheme: str) -
     else:  # resumed after its deciding check: nothing trained in this process
         from hola_ray.oracle.trainer import TrainStats
 
-        stats = TrainStats(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
+        stats = TrainStats.untrained()
     if resumed:  # the env steps before the resume count too
         stats = dataclasses.replace(stats, env_steps=stats.env_steps + resumed)
     return Built([states[m] for m in mep.members], stats, said, metrics)

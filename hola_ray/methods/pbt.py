@@ -99,8 +99,7 @@ class PBT(Method):
             return pretrain_population(trainer, 0.0, how, c.pbt.start)
         from hola_ray.oracle.trainer import TrainStats
 
-        untrained = TrainStats(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
-        return Built([state] * n, untrained, f"{n} agents, each a copy of {named}")
+        return Built([state] * n, TrainStats.untrained(), f"{n} agents, each a copy of {named}")
 
     def before_training(self, trainer: Trainer, g: int, oracle: Oracle) -> int:
         """Generation g trains agent (g − 1) mod K: its weights go into the learner, which

@@ -125,6 +125,11 @@ class TrainStats:
     (`MLPPolicy.spread` on reference observations, the widest trained module), entropy,
     value loss and explained variance (KL when the KL penalty is on)"""
 
+    @classmethod
+    def untrained(cls) -> TrainStats:
+        """No training: a generation 0 made of copies, or a build resumed after its end."""
+        return cls(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
+
     @property
     def spread(self) -> dict[str, float]:
         """The last iteration's spread and the widest of the call: std_median, clipped,
