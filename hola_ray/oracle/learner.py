@@ -28,6 +28,8 @@ from ray.rllib.utils.metrics import NUM_ENV_STEPS_SAMPLED_LIFETIME
 from ray.rllib.utils.torch_utils import explained_variance
 
 from hola_ray.oracle.connectors import AddOneTsInArrays, DropFrozenModules, PopulationEntropyBonus
+from hola_ray.oracle.distribution import BetaTurn
+from hola_ray.oracle.fused import FusedLoss
 from hola_ray.oracle.minibatches import Minibatch, Minibatches
 
 
@@ -52,6 +54,23 @@ _LOSS_COLUMNS = (
     Postprocessing.VALUE_TARGETS,
 )
 """what `OracleLearner.compute_loss_for_module` and the module's `forward_train` read"""
+
+
+def _masked_means(mask: torch.Tensor | None):
+    """(mean over the rows the loss mask keeps, the same as the loss takes it): the loss's
+    mean keeps the masked rows as zeros rather than cutting them out (a gather less per
+    step), the same gradient and the loss itself to within its float rounding."""
+    if mask is None:
+        return torch.mean, torch.mean
+    num_valid = torch.sum(mask)
+
+    def mean(x: torch.Tensor) -> torch.Tensor:
+        return torch.sum(x[mask]) / num_valid
+
+    def loss_mean(x: torch.Tensor) -> torch.Tensor:
+        return torch.sum(torch.where(mask, x, 0.0)) / num_valid
+
+    return mean, loss_mean
 
 
 class OracleLearner(PPOTorchLearner):
@@ -126,20 +145,7 @@ class OracleLearner(PPOTorchLearner):
                 module_id=module_id, config=config, batch=batch, fwd_out=fwd_out
             )
         module = self.module[module_id].unwrapped()
-        mask = batch.get(Columns.LOSS_MASK)
-        if mask is not None:
-            num_valid = torch.sum(mask)
-
-            def mean(x: torch.Tensor) -> torch.Tensor:
-                return torch.sum(x[mask]) / num_valid
-
-            def loss_mean(x: torch.Tensor) -> torch.Tensor:
-                # the masked rows as zeros rather than cut out (a gather less per step):
-                # the same gradient, the loss itself to within its float rounding
-                return torch.sum(torch.where(mask, x, 0.0)) / num_valid
-
-        else:
-            mean = loss_mean = torch.mean
+        _, loss_mean = _masked_means(batch.get(Columns.LOSS_MASK))
         dist = module.get_train_action_dist_cls().from_logits(fwd_out[Columns.ACTION_DIST_INPUTS])
         ratio = torch.exp(dist.logp(batch[Columns.ACTIONS]) - batch[Columns.ACTION_LOGP])
         advantages = batch[Postprocessing.ADVANTAGES]
@@ -162,6 +168,13 @@ class OracleLearner(PPOTorchLearner):
             )
             kl = loss_mean(prev.kl(dist))
             total = total + self.curr_kl_coeffs_per_module[module_id] * kl
+        self._keep_stats(module_id, batch, surrogate, vf_loss, vf_clipped, values, dist, kl)
+        return total
+
+    def _keep_stats(self, module_id, batch, surrogate, vf_loss, vf_clipped, values, dist, kl):
+        """Keep what the update logs of this minibatch's loss (RLlib's window-1 figures),
+        computed only if it is the update's last (`after_gradient_based_update`)."""
+        mean, _ = _masked_means(batch.get(Columns.LOSS_MASK))
 
         def stats() -> dict[str, torch.Tensor]:
             with torch.no_grad():
@@ -174,12 +187,11 @@ class OracleLearner(PPOTorchLearner):
                     ),
                     ENTROPY_KEY: mean(dist.entropy()),
                     LEARNER_RESULTS_KL_KEY: (
-                        kl.detach() if kl is not None else torch.zeros((), device=total.device)
+                        kl.detach() if kl is not None else torch.zeros((), device=values.device)
                     ),
                 }
 
         self._last_stats[module_id] = stats
-        return total
 
     def after_gradient_based_update(self, *, timesteps) -> None:
         if self._env_steps_before:  # a resumed run: its schedules go on where they were
@@ -297,8 +309,27 @@ class OracleLearner(PPOTorchLearner):
         """One minibatch's forward pass, loss, backward pass, clip and optimizer steps."""
         if not self._lean:
             self._compute_off_policyness(batch)
-        fwd_out = self.module.forward_train(batch)
-        loss_per_module = self.compute_losses(fwd_out=fwd_out, batch=batch)
+        fused = self._fused_losses(batch)
+        if fused is None:
+            fwd_out = self.module.forward_train(batch)
+            loss_per_module = self.compute_losses(fwd_out=fwd_out, batch=batch)
+        else:
+            fwd_out, loss_per_module = {}, {}
+            for mid, loss in fused.items():
+                coeff = self.entropy_coeff_schedulers_per_module[mid].get_current_value()
+                config = self.config.get_config_for_module(mid)
+                loss_per_module[mid], terms = loss(batch[mid], config, float(coeff))
+                dist = BetaTurn.from_logits(terms["logits"])
+                self._keep_stats(
+                    mid,
+                    batch[mid],
+                    terms["surrogate"],
+                    terms["vf_loss"],
+                    terms["vf_clipped"],
+                    terms["values"],
+                    dist,
+                    None,
+                )
         trained = [m for m in loss_per_module if self._module_optimizers.get(m)]
         if not trained:
             return fwd_out, loss_per_module, {}
@@ -329,6 +360,38 @@ class OracleLearner(PPOTorchLearner):
                     torch._foreach_mul_(grads, min(1.0, clip / max(norm.item() + 1e-6, clip)))
                 optim.step()
         return fwd_out, loss_per_module, {}
+
+    def _fused_losses(self, batch) -> dict[str, FusedLoss] | None:
+        """The fused loss of every module in the minibatch, or None (RLlib's update, or a
+        module of another shape): the update runs the module's forward pass and the lean
+        loss instead."""
+        if not self._lean or self._loss_path == "module":
+            return None
+        out = {}
+        for mid in batch:
+            module = self.module[mid].unwrapped()
+            known = self._fused_by_module.get(mid)
+            if known is None or known[0] is not module:  # new, or RLlib rebuilt it
+                fused = FusedLoss.of(
+                    module,
+                    self.config.get_config_for_module(mid),
+                    compile=self._loss_path == "compiled",
+                )
+                self._fused_by_module[mid] = known = (module, fused)
+            if known[1] is None:
+                return None
+            out[mid] = known[1]
+        return out
+
+    def set_loss_path(self, path: str) -> None:
+        """How the lean update computes its loss from now on: `compiled` (the fused loss,
+        `hola_ray.oracle.fused`, compiled: oracle.compile true), `eager` (the same function
+        uncompiled: oracle.compile false), or `module` (RLlib's forward pass, then
+        `compute_loss_for_module`: the path before the fused loss, kept to measure against)."""
+        if path not in ("compiled", "eager", "module"):
+            raise ValueError(f"no loss path {path!r}: compiled, eager or module")
+        self._loss_path = path
+        self._fused_by_module = {}
 
     def reset_module(self, module_id: str, lr: float, entropy_coeff: float) -> None:
         """Train `module_id` from now on with these lr and entropy coefficient and a fresh
@@ -411,6 +474,10 @@ class OracleLearner(PPOTorchLearner):
         super().build()
         extra = self.config.learner_config_dict
         self._lean = extra.get("update", "lean") == "lean"
+        self._loss_path = "compiled" if extra.get("compile", False) else "eager"
+        """how the lean update computes its loss (`set_loss_path`)"""
+        self._fused_by_module: dict[str, tuple[torch.nn.Module, FusedLoss | None]] = {}
+        """module id → (the module, its fused loss or None where it has none)"""
         if extra.get("overlap") and self.config.num_env_runners > 0:
             # the env runners sample on their own CPUs during the update (oracle/overlap.py):
             # the learner keeps to its own instead of spinning torch threads against them

@@ -76,13 +76,42 @@ class Minibatches:
 
     def __iter__(self) -> Iterator[Minibatch]:
         streams = {mid: _IndexStream(n, self.shuffle) for mid, n in self.sizes.items()}
+        packed = {mid: _Packed(cols) for mid, cols in self.columns.items()}
         for _ in range(self.steps):
             batches, rows = {}, {}
-            for mid, cols in self.columns.items():
+            for mid, columns in packed.items():
                 index = streams[mid].take(self.minibatch)
-                batches[mid] = {k: torch.index_select(v, 0, index) for k, v in cols.items()}
+                batches[mid] = columns.gather(index)
                 rows[mid] = len(index)
             yield Minibatch(batches, rows, self.env_steps)
+
+
+class _Packed:
+    """A module's columns side by side, one tensor per dtype, so that a minibatch is one
+    gather per dtype (not one per column); its columns are views into the gathered rows."""
+
+    def __init__(self, columns: Mapping[str, torch.Tensor]):
+        self.parts: list[tuple[torch.Tensor, list[tuple[str, int, int, torch.Size]]]] = []
+        """(the columns of one dtype as [rows, width], [(column, start, stop, row shape)])"""
+        by_dtype: dict[torch.dtype, list[tuple[str, torch.Tensor]]] = {}
+        for name, tensor in columns.items():
+            by_dtype.setdefault(tensor.dtype, []).append((name, tensor))
+        for group in by_dtype.values():
+            rows = len(group[0][1])
+            flat = [t.reshape(rows, -1) for _, t in group]
+            spans, start = [], 0
+            for (name, tensor), f in zip(group, flat, strict=True):
+                spans.append((name, start, start + f.shape[1], tensor.shape[1:]))
+                start += f.shape[1]
+            self.parts.append((torch.cat(flat, dim=1) if len(flat) > 1 else flat[0], spans))
+
+    def gather(self, index: torch.Tensor) -> dict[str, torch.Tensor]:
+        out = {}
+        for flat, spans in self.parts:
+            rows = torch.index_select(flat, 0, index)
+            for name, start, stop, shape in spans:
+                out[name] = rows[:, start:stop].view(len(index), *shape)
+        return out
 
 
 class _IndexStream:

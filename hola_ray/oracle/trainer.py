@@ -234,6 +234,7 @@ class Oracle:
             "horizon_terminates": o.horizon_terminates,
             "update": o.update,
             "overlap": o.overlap,
+            "compile": o.compile,
         }
         if self.mep:
             extra |= {"mep_alpha": self.seating.mep_alpha, "mep_modules": self.members}

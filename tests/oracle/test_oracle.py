@@ -41,6 +41,22 @@ def beta_mean(inputs: np.ndarray) -> np.ndarray:
     return (2.0 * (c1 / (c1 + c0)) - 1.0)[:, 0].numpy()
 
 
+def loss_batch(rng: np.random.Generator, n: int, masked: bool) -> dict[str, torch.Tensor]:
+    """n random rows of the columns the PPO loss reads, with a loss mask keeping ~70 %."""
+    f32 = torch.float32
+    batch = {
+        "obs": torch.as_tensor(rng.uniform(-1, 1, (n, CONFIG.env.obs_dim)), dtype=f32),
+        "actions": torch.as_tensor(rng.uniform(-0.9, 0.9, (n, 1)), dtype=f32),
+        "action_logp": torch.as_tensor(rng.normal(0, 0.3, n), dtype=f32),
+        "action_dist_inputs": torch.as_tensor(rng.normal(0, 1, (n, 2)), dtype=f32),
+        "advantages": torch.as_tensor(rng.normal(0, 2, n), dtype=f32),
+        "value_targets": torch.as_tensor(rng.normal(0, 5, n), dtype=f32),
+    }
+    if masked:
+        batch["loss_mask"] = torch.as_tensor(rng.uniform(size=n) < 0.7)
+    return batch
+
+
 @pytest.fixture(scope="module")
 def oracle(ray_session):
     o = CONFIG.strategy.make_oracle(CONFIG)
@@ -457,18 +473,7 @@ def test_the_lean_ppo_loss_equals_rllibs_with_its_gradients_and_logged_figures(
     schedulers = learner.entropy_coeff_schedulers_per_module
     kept = schedulers[LEARNER]
     schedulers[LEARNER] = Scheduler(fixed_value_or_schedule=entropy_coef, framework="torch")
-    rng = np.random.default_rng(5)
-    n = 96
-    batch = {
-        "obs": torch.as_tensor(rng.uniform(-1, 1, (n, CONFIG.env.obs_dim)), dtype=torch.float32),
-        "actions": torch.as_tensor(rng.uniform(-0.9, 0.9, (n, 1)), dtype=torch.float32),
-        "action_logp": torch.as_tensor(rng.normal(0, 0.3, n), dtype=torch.float32),
-        "action_dist_inputs": torch.as_tensor(rng.normal(0, 1, (n, 2)), dtype=torch.float32),
-        "advantages": torch.as_tensor(rng.normal(0, 2, n), dtype=torch.float32),
-        "value_targets": torch.as_tensor(rng.normal(0, 5, n), dtype=torch.float32),
-    }
-    if masked:
-        batch["loss_mask"] = torch.as_tensor(rng.uniform(size=n) < 0.7)
+    batch = loss_batch(np.random.default_rng(5), 96, masked)
 
     def loss_of(compute) -> tuple[float, dict[str, torch.Tensor], dict[str, float]]:
         module.zero_grad(set_to_none=True)
@@ -496,6 +501,86 @@ def test_the_lean_ppo_loss_equals_rllibs_with_its_gradients_and_logged_figures(
     for k in lean[1]:
         np.testing.assert_allclose(lean[1][k], rllib[1][k], rtol=1e-5, atol=1e-8, err_msg=k)
     assert lean[2] == pytest.approx(rllib[2], rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    "path,entropy_coef,masked",
+    [("eager", 0.0, False), ("eager", 0.05, True), ("compiled", 0.05, True)],
+)
+def test_the_fused_loss_gives_the_lean_losss_step_gradients_and_logged_figures(
+    local_learner, oracle, path, entropy_coef, masked
+):
+    """The fused loss (hola_ray/oracle/fused.py) takes the same gradient step as RLlib's
+    forward pass and the lean loss: uncompiled to float rounding, compiled within 1e-5, with
+    the same logged figures; the module's own parameters are the ones stepped."""
+    import copy
+
+    from ray.rllib.utils.schedules.scheduler import Scheduler
+
+    learner = local_learner(oracle.algo)
+    module = learner.module[LEARNER]
+    schedulers = learner.entropy_coeff_schedulers_per_module
+    kept = schedulers[LEARNER]
+    schedulers[LEARNER] = Scheduler(fixed_value_or_schedule=entropy_coef, framework="torch")
+    batch = {LEARNER: loss_batch(np.random.default_rng(11), 128, masked)}
+    ((_, optim),) = learner.get_optimizers_for_module(LEARNER)
+    params0 = copy.deepcopy(module.state_dict())
+    optim0 = copy.deepcopy(optim.state_dict())
+
+    def step(loss_path: str):
+        module.load_state_dict(params0)
+        optim.load_state_dict(copy.deepcopy(optim0))
+        learner.set_loss_path(loss_path)
+        learner._last_stats = {}
+        _, losses, _ = learner._uncompiled_update(batch)
+        grads = {k: p.grad.clone() for k, p in module.named_parameters() if p.grad is not None}
+        logged = {k: float(v) for k, v in learner._last_stats[LEARNER]().items()}
+        weights = {k: v.clone() for k, v in module.state_dict().items()}
+        return float(losses[LEARNER].detach()), grads, logged, weights
+
+    try:
+        reference = step("module")
+        fused = step(path)
+    finally:
+        schedulers[LEARNER] = kept
+        learner.set_loss_path("compiled" if CONFIG.oracle.compile else "eager")
+        module.load_state_dict(params0)
+        optim.load_state_dict(optim0)
+    tolerance = 1e-6 if path == "eager" else 1e-5
+    assert fused[0] == pytest.approx(reference[0], rel=tolerance)
+    assert fused[1].keys() == reference[1].keys()
+    assert len(fused[1]) == len(list(module.parameters()))
+    for k in fused[1]:
+        # rounding relative to the tensor's largest entry: the compiled tanh is within 4e-7
+        # of torch's, and its sums over rows run in another order
+        scale = float(reference[1][k].abs().max())
+        np.testing.assert_allclose(
+            fused[1][k], reference[1][k], rtol=0, atol=3 * tolerance * scale, err_msg=k
+        )
+    assert fused[2] == pytest.approx(reference[2], rel=tolerance, abs=1e-7)
+    moved = max(float((fused[3][k] - params0[k]).abs().max()) for k in params0)
+    assert moved > 1e-5  # the module's own weights took the step
+    for k in fused[3]:
+        np.testing.assert_allclose(fused[3][k], reference[3][k], rtol=0, atol=1e-6, err_msg=k)
+
+
+def test_the_fused_loss_is_used_only_for_the_plain_beta_network():
+    """`FusedLoss.of` takes tanh MLPs with linear heads and the Beta turn, nothing else."""
+    from hola_ray.oracle.fused import _mlp_params
+
+    linear, tanh = torch.nn.Linear(3, 4), torch.nn.Tanh()
+    head = torch.nn.Linear(4, 2)
+    encoder = torch.nn.Sequential(linear, tanh)
+    assert _mlp_params(encoder, torch.nn.Sequential(head)) == [
+        linear.weight,
+        linear.bias,
+        head.weight,
+        head.bias,
+    ]
+    assert (
+        _mlp_params(torch.nn.Sequential(linear, torch.nn.ReLU()), torch.nn.Sequential(head)) is None
+    )
+    assert _mlp_params(encoder) is None  # ends in an activation, not a layer
 
 
 def test_a_reset_learner_trains_on_with_its_new_hyperparameters_and_a_fresh_optimizer(
