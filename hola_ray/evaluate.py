@@ -6,7 +6,10 @@
 
 Per learner and pool, `--episodes` episodes per seed with teammates drawn from the pool,
 and the BR-Prox score over `--cell-episodes` per cell: what each figure means and how its
-interval is made is `hola_ray.evaluation.zero_shot`'s docstring.
+interval is made is `hola_ray.evaluation.zero_shot`'s docstring. Beside every learner, the
+learner's scale (`hola_ray.evaluation.scale`): the same episodes played by a seat that holds
+its heading (the floor) and by the committed ceilings (`pools/reference/`), and the
+learner's normalised score (learner − floor) / (ceiling − floor) with its interval.
 
 The scenario is the arena's default (Table I) with the learners' number of evaders (the
 paper's evaluation is 3 vs 2; every learner given must share it) and the arena's default
@@ -34,9 +37,10 @@ from hola_ray.cli import OneLineParser, fail
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.compare import METRICS
 from hola_ray.evaluation.players import EvaluationError, load_learner, pools
-from hola_ray.evaluation.pools import EVALUATION_POOLS
+from hola_ray.evaluation.pools import EVALUATION_POOLS, PoolError
 from hola_ray.evaluation.report import plot
 from hola_ray.evaluation.rollout import PolicyError
+from hola_ray.evaluation.scale import load_references
 from hola_ray.evaluation.zero_shot import evaluate
 from hola_ray.homes import RUNS
 from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
@@ -114,8 +118,17 @@ def main(argv: list[str] | None = None) -> int:
             )
         learners = {name: policy for name, (_, policy) in zip(called, loaded, strict=True)}
         print(f"scenario: {config.n_pursuers} pursuers vs {config.n_evaders} evader(s)", flush=True)
-        results = evaluate(learners, members, config, args.episodes, args.seeds, args.cell_episodes)
-    except (EvaluationError, PolicyError) as err:
+        references = load_references(config)
+        results = evaluate(
+            learners,
+            members,
+            config,
+            args.episodes,
+            args.seeds,
+            args.cell_episodes,
+            references=references,
+        )
+    except (EvaluationError, PolicyError, PoolError) as err:
         return fail(str(err))
     if args.plot:
         out = args.out or RUNS / time.strftime("evaluation-%Y%m%d-%H%M%S")
@@ -130,6 +143,7 @@ def main(argv: list[str] | None = None) -> int:
                         n: {
                             p: _rounded({k: v[k] for k in keep})
                             | {"score_iqm": round(v["score_iqm"], 4)}
+                            | _scale(v)
                             for p, v in r.items()
                         }
                         for n, r in results.items()
@@ -138,6 +152,24 @@ def main(argv: list[str] | None = None) -> int:
             )
         )
     return 0
+
+
+def _scale(row: Mapping[str, Any]) -> dict[str, Any]:
+    """The learner's scale for the JSON line: the reference seats' figures and the
+    normalised score per ceiling."""
+    if "scale" not in row:
+        return {}
+    scale = row["scale"]
+    return {
+        "scale": {
+            "floor": scale["floor"],
+            "ceilings": scale["ceilings"],
+            "normalised": {
+                c: {"mean": round(v["mean"], 4), "ci95": [round(x, 4) for x in v["ci95"]]}
+                for c, v in scale["normalised"].items()
+            },
+        }
+    }
 
 
 def _rounded(values: Mapping[str, Any]) -> dict[str, Any]:

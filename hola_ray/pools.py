@@ -2,6 +2,7 @@
 
     python -m hola_ray.pools build [--pool hot|het|validation] [--episodes 50] [--seeds 0 1 2]
     python -m hola_ray.pools show [--pool hot|het|validation]
+    python -m hola_ray.pools reference [--handwritten NAME ...] [--learned FILE ...]
 
 This is the command that builds and shows the pools; what a pool is, and how it is loaded
 and verified, is `hola_ray.evaluation.pools`.
@@ -13,6 +14,10 @@ and verified, is `hola_ray.evaluation.pools`.
 - `het` (heterogeneous): Greedy, VICSEK, D3QN-G (1) and (2).
 - `validation`: the teammates training may see, for selection (APF-A pairs and two SP
   agents). The pool seeds (101, 102, …) are kept apart from the seeds of training runs.
+- `reference` (not a pool: the learner's scale, `hola_ray.evaluation.scale`): the floor
+  seat and the ceilings, each ceiling the candidate that does best with the validation
+  teammates at 3 vs 2 (default candidates: every hand-written pursuer that is no evaluation
+  pool member; learned candidates are files you name).
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from typing import Any
 from hola_ray.cli import OneLineParser, fail
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.pools import (
+    EVALUATION_POOLS,
     FORMAT,
     MANIFEST,
     MEMBERS,
@@ -166,8 +172,25 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--quiet", action="store_true")
     s = sub.add_parser("show", help="a pool's members, hashes and Table II figures")
     s.add_argument("--pool", default=None, help="hot, het or a folder (default: both)")
+    r = sub.add_parser("reference", help="choose the learner's scale's ceilings on validation")
+    r.add_argument("--handwritten", nargs="+", default=None, help="default: all but pool members")
+    r.add_argument("--learned", nargs="+", type=Path, default=[], help="exported learners")
+    r.add_argument("--episodes", type=int, default=100, help="validation episodes per seed")
+    r.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     args = parser.parse_args(argv)
     try:
+        if args.command == "reference":
+            from hola_ray.evaluation.scale import write_reference
+            from hola_ray.policies.registry import policy_names
+
+            held_out = {mid for ids in EVALUATION_POOLS.values() for mid in ids}
+            names = args.handwritten or [
+                n for n in policy_names() if n not in held_out and n != "hold"
+            ]
+            write_reference(
+                PursuitConfig(n_evaders=2), names, args.learned, args.episodes, args.seeds
+            )
+            return 0
         if args.command == "build":
             for pool in args.pool or sorted(POOLS):
                 folder = build(pool, args.episodes, args.seeds, not args.quiet)

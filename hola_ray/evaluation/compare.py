@@ -105,12 +105,17 @@ def compare(
     draws: int = 4000,
     seed: int = 0,
     seeds: Mapping[str, Sequence[int]] | None = None,
+    scale: tuple[str, Sequence[str]] | None = None,
 ) -> tuple[dict[str, dict[str, dict]], dict[str, dict[str, dict]]]:
     """Per method (its trials' episodes, one mapping per training seed, all on the same
     episodes) the figures {metric: {mean, se, ci95}}, and per pair (A, B) the difference
     A − B {metric: {mean, se, ci95}}: the mean over a method's seeds, intervals by the
     stratified bootstrap of the module doc. `seeds`: each method's training seeds, in the
-    order of its trials; methods with the same ones are resampled as pairs (module doc)."""
+    order of its trials; methods with the same ones are resampled as pairs (module doc).
+    `scale`: (the floor's name, the ceilings' names) among `methods` (reference seats, one
+    trial each): every other method's figures then hold `normalised`, {ceiling: {mean, se,
+    ci95}} of (success − floor's) / (ceiling's − floor's), taken inside each draw
+    (`hola_ray.evaluation.scale`)."""
     trials = [t for ts in methods.values() for t in ts]
     if not trials:
         raise ValueError("no trials to compare")
@@ -149,6 +154,24 @@ def compare(
         name: {m: _summary(points[name][m], method_draws[name][m]) for m in METRICS}
         for name in methods
     }
+    if scale is not None:
+        floor, ceilings = scale
+        for name in methods:
+            if name == floor or name in ceilings:
+                continue
+            out[name]["normalised"] = {
+                c: _summary(
+                    normalised(
+                        points[name]["success"], points[floor]["success"], points[c]["success"]
+                    ),
+                    normalised(
+                        method_draws[name]["success"],
+                        method_draws[floor]["success"],
+                        method_draws[c]["success"],
+                    ),
+                )
+                for c in ceilings
+            }
     diffs: dict[str, dict[str, dict]] = {}
     for a, b in pairs:
         diffs[f"{a}-{b}"] = {
@@ -156,6 +179,16 @@ def compare(
             for m in METRICS
         }
     return out, diffs
+
+
+def normalised(value, floor, ceiling):
+    """(value − floor) / (ceiling − floor): 0 at the floor's level, 1 at the ceiling's; NaN
+    where the ceiling is not above the floor (no scale to read it on)."""
+    value, floor, ceiling = (np.asarray(x, dtype=np.float64) for x in (value, floor, ceiling))
+    room = ceiling - floor
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.where(room > 0, (value - floor) / np.where(room > 0, room, 1.0), np.nan)
+    return float(out) if out.ndim == 0 else out
 
 
 def verdict(difference: Mapping[str, object], higher_is_better: bool = True) -> str:

@@ -33,6 +33,7 @@ from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.compare import FIELDS, METRICS, compare
 from hola_ray.evaluation.pools import pool_dir
 from hola_ray.evaluation.rollout import rollout
+from hola_ray.evaluation.scale import CEILINGS, FLOOR, play_references, reference_figures
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.evaluation.teams import play
 from hola_ray.homes import sha256
@@ -97,13 +98,20 @@ def evaluate_learner(
     episodes: int,
     seeds: Sequence[int],
     cell_episodes: int,
+    seats: Mapping[str, Mapping[str, np.ndarray]] | None = None,
 ) -> dict[str, Any]:
     """One learner's figures against one pool (`members`), whose reference returns
-    (`cell_returns(members, members, …)`) are given: computed once for every learner."""
+    (`cell_returns(members, members, …)`) are given: computed once for every learner.
+    `seats`: the reference seats' episodes (`hola_ray.evaluation.scale.play_references`,
+    the floor and the ceilings on these episodes), for the learner's scale."""
     played = play(learner, members, config, episodes, seeds)
     mine = cell_returns([learner], members, config, cell_episodes, seeds)[..., 0]
     scores, dropped = br_prox(reference, mine)
-    intervals = compare({"learner": [played]})[0]["learner"]
+    seats = dict(seats or {})
+    ceilings = [c for c in CEILINGS if c in seats]
+    scale = (FLOOR, ceilings) if FLOOR in seats and ceilings else None
+    summary = compare({"learner": [played], **{k: [v] for k, v in seats.items()}}, scale=scale)[0]
+    intervals = summary["learner"]
     row: dict[str, Any] = {}
     for m in METRICS:
         row[m] = intervals[m]["mean"]
@@ -113,17 +121,29 @@ def evaluate_learner(
             row[f"{m}_per_seed"] = [
                 round(float(played[m][played["eval_seed"] == s].mean()), 4) for s in seeds
             ]
+    if scale is not None:
+        row["scale"] = {
+            "floor": reference_figures(seats[FLOOR]),
+            "ceilings": {c: reference_figures(seats[c]) for c in ceilings},
+            "normalised": intervals["normalised"],
+            "per_episode": {k: episode_record(v) for k, v in seats.items()},
+        }
     row["score_iqm"] = iqm(scores)
     row["score_cells"] = int(scores.size)
     row["score_cells_without_reference"] = dropped
     row["episodes"] = episodes * len(seeds)
-    row["per_episode"] = {
+    row["per_episode"] = episode_record(played)
+    return row
+
+
+def episode_record(played: Mapping[str, np.ndarray]) -> dict[str, list]:
+    """Every episode's figures as JSON lists (`hola_ray.evaluation.teams.play`'s fields)."""
+    return {
         m: [round(float(x), 4) for x in played[m]]
         if m in ("reward", "teammate_crash")
         else [int(x) for x in played[m]]
         for m in (*FIELDS, "eval_seed")
     }
-    return row
 
 
 def pool_fingerprints(names: Sequence[str]) -> dict[str, str]:
@@ -140,19 +160,27 @@ def evaluate(
     seeds: Sequence[int],
     cell_episodes: int,
     say=print,
+    references: Mapping[str, Any] | None = None,
 ) -> dict[str, dict[str, dict[str, Any]]]:
-    """Figures per learner and pool (see the module doc)."""
+    """Figures per learner and pool (see the module doc); with `references` (the floor and
+    ceilings, `hola_ray.evaluation.scale.load_references`) the learner's scale too."""
     out: dict[str, dict[str, dict[str, Any]]] = {name: {} for name in learners}
     for pool, members_map in pool_members.items():
         members = list(members_map.values())
         start = time.perf_counter()
         reference = cell_returns(members, members, config, cell_episodes, seeds)
+        seats = play_references(references or {}, members, config, episodes, seeds)
         took = time.perf_counter() - start
-        say(f"[{pool}] reference returns of {len(members)} members: {took:.0f} s")
+        say(
+            f"[{pool}] reference returns of {len(members)} members and "
+            f"{len(seats)} reference seats: {took:.0f} s"
+        )
+        if seats:
+            say(f"[{pool}] " + scale_line(seats))
         for name, learner in learners.items():
             start = time.perf_counter()
             row = evaluate_learner(
-                learner, members, reference, config, episodes, seeds, cell_episodes
+                learner, members, reference, config, episodes, seeds, cell_episodes, seats
             )
             out[name][pool] = row
             say(
@@ -163,4 +191,29 @@ def evaluate(
                 f"{row['steps_success']:.0f}), reward {row['reward']:.1f}, score IQM "
                 f"{row['score_iqm']:.3f} ({time.perf_counter() - start:.0f} s)"
             )
+            if "scale" in row:
+                say(f"[{pool}] {name}: normalised score " + normalised_line(row["scale"]))
     return out
+
+
+def scale_line(seats: Mapping[str, Mapping[str, np.ndarray]]) -> str:
+    """The reference seats' success, collision and own crash, one line."""
+    return "; ".join(
+        f"{name} ({'holds its heading' if name == FLOOR else 'ceiling'}): success "
+        f"{f['success']:.1%}, collision {f['collision']:.1%}, own crash {f['learner_crash']:.1%}"
+        for name, f in ((n, reference_figures(e)) for n, e in seats.items())
+    )
+
+
+def normalised_line(scale: Mapping[str, Any]) -> str:
+    """(learner − floor) / (ceiling − floor) per ceiling with its interval, one line."""
+    floor = scale["floor"]["success"]
+    parts = []
+    for name, value in scale["normalised"].items():
+        lo, hi = value["ci95"]
+        ceiling = scale["ceilings"][name]["success"]
+        parts.append(
+            f"{value['mean']:.2f} [{lo:.2f}, {hi:.2f}] of the way from the floor ({floor:.1%}) "
+            f"to the {name} ceiling ({ceiling:.1%})"
+        )
+    return "; ".join(parts)

@@ -32,6 +32,7 @@ def aggregate(
     pair "A-B" and pool, each metric's paired difference {mean, se, ci95}. Intervals and
     standard errors from `hola_ray.evaluation.compare` (training seeds and episodes)."""
     from hola_ray.evaluation.compare import METRICS, compare
+    from hola_ray.evaluation.scale import FLOOR
 
     pools_ = sorted({p for r in per_trial.values() for p in r}, key=lambda p: (p != "hot", p))
     out: dict[str, dict[str, dict[str, Any]]] = {m: {} for m in methods}
@@ -51,7 +52,17 @@ def aggregate(
         }
         wanted = [(a, b) for a, b in pairs if a in rows and b in rows]
         seeds = {m: [seed for seed, _ in seeded[m]] for m in rows}
-        figures, diffs = compare(episodes, wanted, seeds=seeds)
+        # the reference seats played the same episodes for every trial: any trial's record
+        seats = next((r["scale"] for rs in rows.values() for r in rs if "scale" in r), None)
+        scale = None
+        if seats is not None:
+            refs = {
+                f"@{k}": [{f: np.asarray(v) for f, v in e.items()}]
+                for k, e in seats["per_episode"].items()
+            }
+            episodes = {**episodes, **refs}
+            scale = (f"@{FLOOR}", [f"@{c}" for c in seats["ceilings"]])
+        figures, diffs = compare(episodes, wanted, seeds=seeds, scale=scale)
         for m, rs in rows.items():
             entry: dict[str, Any] = {"trials": len(rs)}
             for k in METRICS:
@@ -63,6 +74,12 @@ def aggregate(
             entry["score_se"] = (
                 float(scores.std(ddof=1) / np.sqrt(scores.size)) if scores.size > 1 else 0.0
             )
+            if seats is not None:
+                entry["scale"] = {
+                    "floor": seats["floor"],
+                    "ceilings": seats["ceilings"],
+                    "normalised": {c.lstrip("@"): v for c, v in figures[m]["normalised"].items()},
+                }
             out[m][pool] = entry
         for (a, b), key in zip(wanted, diffs, strict=True):
             differences[f"{a}-{b}"][pool] = diffs[key]

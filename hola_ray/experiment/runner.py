@@ -328,7 +328,8 @@ class Runner:
         import ray
 
         self.eval_dir.mkdir(parents=True, exist_ok=True)
-        from hola_ray.evaluation.zero_shot import pool_fingerprints
+        from hola_ray.evaluation.scale import reference_fingerprint
+        from hola_ray.evaluation.zero_shot import normalised_line, pool_fingerprints
 
         settings = {
             "episodes": self.exp.evaluation.episodes,
@@ -337,6 +338,7 @@ class Runner:
             "pools": list(self.exp.evaluation.pools),
             "format": EVALUATION_FORMAT,
             "pool_manifests": pool_fingerprints(self.exp.evaluation.pools),
+            "reference": reference_fingerprint(),
         }
         results: dict[str, dict[str, Any]] = {}
         todo: list[str] = []
@@ -375,6 +377,7 @@ class Runner:
             _atomic_json(self.eval_dir / f"{t}.json", {"settings": settings, "pools": results[t]})
             figures = "; ".join(
                 f"{p} success {r['success']:.1%}, collision {r['collision']:.1%}"
+                + (f", normalised {normalised_line(r['scale'])}" if "scale" in r else "")
                 for p, r in results[t].items()
             )
             self.say(f"{t}: {figures}")

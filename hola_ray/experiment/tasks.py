@@ -9,8 +9,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from hola_ray.methods.config import RunConfig
 from hola_ray.process import pin_threads
 
@@ -103,20 +101,28 @@ def _run_trial(
     return "mirrored to the driver's node"
 
 
-def _reference(pool: str, settings: dict[str, Any], n_evaders: int) -> np.ndarray:
-    """A pool's reference returns for the BR-Prox score: computed once, for every trial."""
+def _reference(pool: str, settings: dict[str, Any], n_evaders: int) -> dict[str, Any]:
+    """A pool's reference returns for the BR-Prox score and the learner's scale's reference
+    seats on the evaluation's episodes: computed once, for every trial."""
     pin_threads(1)  # its one CPU: two such tasks side by side otherwise spin each other
     from hola_ray.env.config import PursuitConfig
     from hola_ray.evaluation.players import pool_label, pools
+    from hola_ray.evaluation.scale import load_references, play_references
     from hola_ray.evaluation.zero_shot import cell_returns
 
     config = PursuitConfig(n_evaders=n_evaders)
     members = list(pools([pool], [], config)[pool_label(pool)].values())
-    return cell_returns(members, members, config, settings["cell_episodes"], settings["seeds"])
+    seeds = settings["seeds"]
+    return {
+        "returns": cell_returns(members, members, config, settings["cell_episodes"], seeds),
+        "seats": play_references(
+            load_references(config), members, config, settings["episodes"], seeds
+        ),
+    }
 
 
 def _evaluate_trial(
-    learner: bytes, settings: dict[str, Any], n_evaders: int, references: dict[str, np.ndarray]
+    learner: bytes, settings: dict[str, Any], n_evaders: int, references: dict[str, dict]
 ) -> dict[str, Any]:
     """A learner (its file's bytes, read by the driver: any node can evaluate it) against
     the pools."""
@@ -137,11 +143,12 @@ def _evaluate_trial(
         pool: evaluate_learner(
             policy,
             list(members[pool_label(pool)].values()),
-            references[pool],
+            references[pool]["returns"],
             config,
             settings["episodes"],
             list(settings["seeds"]),
             settings["cell_episodes"],
+            references[pool]["seats"],
         )
         for pool in settings["pools"]
     }

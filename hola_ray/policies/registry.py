@@ -10,11 +10,13 @@ from hola_ray.homes import GENERATION_EXPORT, GENERATION_STATE
 from hola_ray.policies.apf import APFA
 from hola_ray.policies.base import Policy
 from hola_ray.policies.greedy import Greedy
+from hola_ray.policies.hold import HoldHeading
 from hola_ray.policies.vicsek import Vicsek
 
 _FACTORIES: dict[str, Callable[[PursuitConfig], Policy]] = {
     "greedy": Greedy,
     "vicsek": Vicsek,
+    "hold": HoldHeading,
     **{f"apf-a-{k}": (lambda cfg, k=k: APFA(cfg, pair=k)) for k in range(24)},
 }
 
