@@ -34,10 +34,18 @@ def table_lines(results: Mapping[str, Mapping[str, Mapping[str, Any]]], first: s
         return f"{value:.1%} [{lo:.1%}, {hi:.1%}]"
 
     pool_names = sorted({p for r in results.values() for p in r}, key=lambda p: (p != "hot", p))
+    ceilings = sorted(
+        {
+            c
+            for r in results.values()
+            for x in r.values()
+            for c in x.get("scale", {}).get("normalised", {})
+        }
+    )
     lines = [
         f"| {first} | pool | success | collision | length | steps to success | reward "
-        "| learner crashed | score (IQM) |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| learner crashed | score (IQM) |" + "".join(f" normalised ({c}) |" for c in ceilings),
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |" + " --- |" * len(ceilings),
     ]
     for n, by_pool in results.items():
         for pool in pool_names:
@@ -45,7 +53,40 @@ def table_lines(results: Mapping[str, Mapping[str, Mapping[str, Any]]], first: s
             if r:
                 cells = " | ".join(cell(r, m) for m in (*PANELS, "learner_crash") if m in r)
                 score = r.get("score_iqm", r.get("score", float("nan")))
-                lines.append(f"| {n} | {pool} | {cells} | {score:.3f} |")
+                scaled = r.get("scale", {}).get("normalised", {})
+                extra = "".join(
+                    f" {scaled[c]['mean']:.2f} [{scaled[c]['ci95'][0]:.2f}, "
+                    f"{scaled[c]['ci95'][1]:.2f}] |"
+                    if c in scaled
+                    else " |"
+                    for c in ceilings
+                )
+                lines.append(f"| {n} | {pool} | {cells} | {score:.3f} |{extra}")
+    scales = {
+        pool: r[pool]["scale"]
+        for pool in pool_names
+        for r in results.values()
+        if "scale" in r.get(pool, {})
+    }
+    if scales:
+        lines += [
+            "",
+            "The learner's scale: the same episodes with a seat that holds its heading (the "
+            "floor) and with each ceiling in the learner's place; normalised = (success − "
+            "floor's) / (ceiling's − floor's), [95 % interval].",
+            "",
+            "| pool | seat | success | collision | own crash |",
+            "| --- | --- | --- | --- | --- |",
+        ]
+        for pool, scale in scales.items():
+            seats = {"floor (holds its heading)": scale["floor"]} | {
+                f"ceiling: {c}": f for c, f in scale["ceilings"].items()
+            }
+            for seat, f in seats.items():
+                lines.append(
+                    f"| {pool} | {seat} | {f['success']:.1%} | {f['collision']:.1%} | "
+                    f"{f['learner_crash']:.1%} |"
+                )
     return lines
 
 
@@ -75,6 +116,15 @@ def plot(results: Mapping[str, Mapping[str, Mapping[str, Any]]], out: Path) -> t
             ).reshape(len(names), 2)
             errors = np.nan_to_num(np.abs(bounds - values[:, None]).T)
             ax.bar(range(len(names)), values, yerr=errors, color=colors, capsize=4)
+            scale = next((r["scale"] for r in rows if "scale" in r), None)
+            if scale is not None and m in ("success", "collision"):  # the learner's scale
+                ax.axhline(scale["floor"][m], color="0.4", ls="--", lw=1, label="floor (hold)")
+                for c, style in zip(scale["ceilings"], (":", "-."), strict=False):
+                    ax.axhline(
+                        scale["ceilings"][c][m], color="0.2", ls=style, lw=1, label=f"ceiling: {c}"
+                    )
+                if i == 0 and m == "success":
+                    ax.legend(fontsize=7, loc="lower right")
             ax.set_xticks(range(len(names)), names, rotation=20, ha="right", fontsize=8)
             ax.set_title(f"{labels.get(pool, pool)}: {title}", fontsize=9)
             if m in ("success", "collision"):

@@ -406,6 +406,11 @@ class Runner:
                     p: {k: r[k] for k in METRICS}
                     | {f"{k}_se": r[f"{k}_se"] for k in METRICS}
                     | {"score": r["score_iqm"]}
+                    | (
+                        {"scale": {k: v for k, v in r["scale"].items() if k != "per_episode"}}
+                        if "scale" in r
+                        else {}
+                    )
                     for p, r in pools_.items()
                 },
             }
