@@ -35,6 +35,7 @@ import numpy as np
 
 from hola_ray import homes
 from hola_ray.env.config import PursuitConfig
+from hola_ray.evaluation.compare import figures
 from hola_ray.evaluation.pools import POOLS_DIR, PoolError, load_validation
 from hola_ray.evaluation.teams import play
 from hola_ray.policies.base import Policy
@@ -78,10 +79,10 @@ def load_references(config: PursuitConfig, folder: Path = REFERENCE_DIR) -> dict
 
 
 def reference_figures(played: Mapping[str, np.ndarray]) -> dict[str, float]:
-    """A reference seat's point figures on the evaluation's episodes."""
-    return {
-        m: round(float(np.mean(played[m])), 4) for m in ("success", "collision", "learner_crash")
-    }
+    """A seat's success, collision and own crash on the evaluation's episodes
+    (`hola_ray.evaluation.compare.figures`)."""
+    point = figures(played)
+    return {m: round(point[m], 4) for m in ("success", "collision", "learner_crash")}
 
 
 def play_references(

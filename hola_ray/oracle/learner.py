@@ -168,15 +168,16 @@ class OracleLearner(PPOTorchLearner):
             )
             kl = loss_mean(prev.kl(dist))
             total = total + self.curr_kl_coeffs_per_module[module_id] * kl
-        self._keep_stats(module_id, batch, surrogate, vf_loss, vf_clipped, values, dist, kl)
+        self._keep_stats(module_id, batch, surrogate, vf_loss, vf_clipped, values, dist.entropy, kl)
         return total
 
-    def _keep_stats(self, module_id, batch, surrogate, vf_loss, vf_clipped, values, dist, kl):
+    def _keep_stats(self, module_id, batch, surrogate, vf_loss, vf_clipped, values, entropy, kl):
         """Keep what the update logs of this minibatch's loss (RLlib's window-1 figures),
-        computed only if it is the update's last (`after_gradient_based_update`)."""
-        mean, _ = _masked_means(batch.get(Columns.LOSS_MASK))
+        computed only if it is the update's last (`after_gradient_based_update`);
+        `entropy`: a function giving the policy's entropy per row, called then."""
 
         def stats() -> dict[str, torch.Tensor]:
+            mean, _ = _masked_means(batch.get(Columns.LOSS_MASK))
             with torch.no_grad():
                 return {
                     POLICY_LOSS_KEY: -mean(surrogate),
@@ -185,7 +186,7 @@ class OracleLearner(PPOTorchLearner):
                     LEARNER_RESULTS_VF_EXPLAINED_VAR_KEY: explained_variance(
                         batch[Postprocessing.VALUE_TARGETS], values
                     ),
-                    ENTROPY_KEY: mean(dist.entropy()),
+                    ENTROPY_KEY: mean(entropy()),
                     LEARNER_RESULTS_KL_KEY: (
                         kl.detach() if kl is not None else torch.zeros((), device=values.device)
                     ),
@@ -319,7 +320,7 @@ class OracleLearner(PPOTorchLearner):
                 coeff = self.entropy_coeff_schedulers_per_module[mid].get_current_value()
                 config = self.config.get_config_for_module(mid)
                 loss_per_module[mid], terms = loss(batch[mid], config, float(coeff))
-                dist = BetaTurn.from_logits(terms["logits"])
+                logits = terms["logits"]
                 self._keep_stats(
                     mid,
                     batch[mid],
@@ -327,7 +328,7 @@ class OracleLearner(PPOTorchLearner):
                     terms["vf_loss"],
                     terms["vf_clipped"],
                     terms["values"],
-                    dist,
+                    lambda logits=logits: BetaTurn.from_logits(logits).entropy(),
                     None,
                 )
         trained = [m for m in loss_per_module if self._module_optimizers.get(m)]
