@@ -48,14 +48,16 @@ F_MATE_REACH = 32
 F_APPROACH_OWN = 33
 F_RESPONSE = 34
 F_SHARED = 35
-N_FLOAT_PARAMS = 36
+F_MATE_GRADED = 36
+N_FLOAT_PARAMS = 37
 
 # ---- packed integer parameters ------------------------------------------------------
 I_HORIZON = 0
 I_HOLD_MIN = 1
 I_HOLD_MAX = 2
 I_RESPONSE_DELAY = 3
-N_INT_PARAMS = 4
+I_HEADINGS = 4
+N_INT_PARAMS = 5
 
 
 class Params(NamedTuple):
@@ -128,6 +130,7 @@ def pack_params(config: PursuitConfig) -> Params:
     fp[F_MATE_REACH] = reward.teammate_distance
     fp[F_APPROACH_OWN] = float(reward.approach == "own_move")
     fp[F_SHARED] = float(reward.shared)
+    fp[F_MATE_GRADED] = float(reward.teammate_graded)
     fp[F_E_SENS] = ev.sensitivity_range
     fp[F_E_PANIC] = ev.panic_threshold
     fp[F_E_WANDER_CLEAR] = ev.wander_clearance
@@ -144,7 +147,13 @@ def pack_params(config: PursuitConfig) -> Params:
     fp[F_SPAWN_SEP] = config.spawn_separation
     fp[F_RESPONSE] = config.pursuer_response
     ip = np.array(
-        [config.horizon, ev.wander_hold_min, ev.wander_hold_max, config.pursuer_response_delay],
+        [
+            config.horizon,
+            ev.wander_hold_min,
+            ev.wander_hold_max,
+            config.pursuer_response_delay,
+            int(config.observe_headings),
+        ],
         dtype=np.int64,
     )
     rects = np.array(

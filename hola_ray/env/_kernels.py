@@ -25,6 +25,7 @@ from hola_ray.env._arena import (
     F_E_MIN_CLEAR,
     F_HEIGHT,
     F_KAPPA,
+    F_MATE_GRADED,
     F_MATE_PENALTY,
     F_MATE_REACH,
     F_MAX_TURN,
@@ -40,6 +41,7 @@ from hola_ray.env._arena import (
     F_V_E,
     F_V_P,
     F_WIDTH,
+    I_HEADINGS,
     I_HORIZON,
     I_RESPONSE_DELAY,
     Arena,
@@ -170,6 +172,15 @@ def observe(b, p, s, obs):
         obs[b, i, k + 1] = py / height
         obs[b, i, k + 2] = math.cos(h)
         obs[b, i, k + 3] = math.sin(h)
+        k += 4
+        if ip[I_HEADINGS]:
+            for j in range(n_p):
+                if j == i:
+                    continue
+                d = norm(ppos[b, j, 0] - px, ppos[b, j, 1] - py)
+                seen = pactive[b, j] and d <= fp[F_PERCEPTION]
+                obs[b, i, k] = wrap(phead[b, j] - h) / math.pi if seen else 0.0
+                k += 1
 
 
 # ---- step -----------------------------------------------------------------------------------
@@ -294,7 +305,7 @@ def _collisions(b, p, s, reward, disabled):
         _, _, d = nearest_static(px, py, rects, fp[F_WIDTH], fp[F_HEIGHT])
         hit = d < fp[F_SAFE]
         near_obstacle = d < fp[F_OBSTACLE_REACH]
-        near_mates = 0
+        near_mates = 0.0
         for j in range(n_p):
             if j == i:
                 continue
@@ -302,7 +313,11 @@ def _collisions(b, p, s, reward, disabled):
             if pactive[b, j]:
                 hit = hit or dj < fp[F_KAPPA]
                 if dj < fp[F_MATE_REACH]:
-                    near_mates += 1
+                    if fp[F_MATE_GRADED] > 0.0:
+                        span = fp[F_MATE_REACH] - fp[F_KAPPA]
+                        near_mates += min(1.0, (fp[F_MATE_REACH] - dj) / span) if span > 0 else 1.0
+                    else:
+                        near_mates += 1.0
             else:
                 hit = hit or dj < fp[F_SAFE]
                 near_obstacle = near_obstacle or dj < fp[F_OBSTACLE_REACH]

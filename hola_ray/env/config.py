@@ -139,6 +139,10 @@ class RewardConfig:
     """subtracted each step, per active teammate nearer than teammate_distance"""
     teammate_distance: float = 0.3
     """reach of teammate_penalty, metres"""
+    teammate_graded: bool = False
+    """False: teammate_penalty in full per teammate nearer than teammate_distance; True:
+    graded, rising linearly from 0 at teammate_distance to teammate_penalty at κ (AT-Drone's
+    proximity penalty between 0.4 and 0.2 m), so a pursuer feels a teammate coming"""
     shared: bool = False
     """the paper's common reward (§III): every pursuer active at the start of a step (one
     that the step disables included; a disabled pursuer's agent has terminated) receives the
@@ -156,6 +160,12 @@ class RewardConfig:
                 value,
             )
         require(isinstance(self.shared, bool), "reward.shared", "true or false", self.shared)
+        require(
+            isinstance(self.teammate_graded, bool),
+            "reward.teammate_graded",
+            "true or false",
+            self.teammate_graded,
+        )
         require(
             self.approach in APPROACH_MODES,
             "reward.approach",
@@ -226,6 +236,10 @@ class PursuitConfig:
     """observed distances are divided by this"""
     unobserved_distance: float = 2.0
     """the distance reading of a captured evader or an unobserved teammate"""
+    observe_headings: bool = False
+    """append each other pursuer's heading relative to the observer's (/ π; 0 beyond d_p or
+    disabled) after the own block (`ObsLayout.headings`); the observation's first
+    entries are unchanged, so policies trained without it read them"""
     reward: RewardConfig = field(default_factory=RewardConfig)
     """each pursuer's reward (SPEC §1)"""
     evader: EvaderConfig = field(default_factory=EvaderConfig)
@@ -265,6 +279,8 @@ class PursuitConfig:
                 value,
             )
         require(self.max_turn <= math.pi, "max_turn", "in (0, π]", self.max_turn)
+        value = self.observe_headings
+        require(isinstance(value, bool), "observe_headings", "true or false", value)
         value = self.pursuer_response
         ok = isinstance(value, int | float) and not isinstance(value, bool)
         require(ok and 0 < value <= 1, "pursuer_response", "a number in (0, 1]", value)
@@ -329,8 +345,9 @@ class PursuitConfig:
     # ---- derived values -------------------------------------------------------------
     @property
     def obs_dim(self) -> int:
-        """Length of one pursuer's observation (see `ObsLayout`)."""
-        return 3 * self.n_evaders + 2 + 2 * (self.n_pursuers - 1) + 4
+        """Length of one pursuer's observation (`ObsLayout.dim`, which a test holds equal)."""
+        headings = self.n_pursuers - 1 if self.observe_headings else 0
+        return 3 * self.n_evaders + 2 + 2 * (self.n_pursuers - 1) + 4 + headings
 
     # ---- (de)serialisation ----------------------------------------------------------
     @classmethod

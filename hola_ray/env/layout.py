@@ -17,6 +17,8 @@ class ObsLayout:
     `[nearest obstacle: (distance, bearing)]`
     `[other pursuers: (n_p − 1) × (distance, bearing)]`
     `[own: x, y, cos θ, sin θ]`
+    `[other pursuers' headings: (n_p − 1) × relative heading]` (only with
+    `observe_headings`)
 
     Distances are divided by `obs_distance_scale`, angles by π and are relative to the
     observer's heading (positive = to its left).
@@ -26,10 +28,12 @@ class ObsLayout:
     """pursuers in the scenario"""
     n_evaders: int
     """evaders in the scenario"""
+    headings: bool = False
+    """the other pursuers' headings follow the own block (`PursuitConfig.observe_headings`)"""
 
     @classmethod
     def from_config(cls, config: PursuitConfig) -> ObsLayout:
-        return cls(config.n_pursuers, config.n_evaders)
+        return cls(config.n_pursuers, config.n_evaders, config.observe_headings)
 
     @property
     def evaders(self) -> int:
@@ -58,9 +62,20 @@ class ObsLayout:
         return [self.obstacle] + [self.teammates + 2 * j for j in range(self.n_pursuers - 1)]
 
     @property
+    def mate_headings(self) -> int:
+        """Offset of the first teammate heading (present only with `headings`)."""
+        return self.own + 4
+
+    @property
+    def base_dim(self) -> int:
+        """Length of the observation without the teammates' headings: what a policy trained
+        without them reads (the observation's first entries)."""
+        return self.own + 4
+
+    @property
     def dim(self) -> int:
         """Length of the observation."""
-        return self.own + 4
+        return self.base_dim + (self.n_pursuers - 1 if self.headings else 0)
 
     def bounds(self, config: PursuitConfig) -> tuple[np.ndarray, np.ndarray]:
         """Elementwise (low, high) of the observation, for its `Box` space."""
@@ -79,6 +94,8 @@ class ObsLayout:
             high[i : i + 2] = (far, 1.0)
         low[self.own : self.own + 4] = (0.0, 0.0, -1.0, -1.0)
         high[self.own : self.own + 4] = (1.0, 1.0, 1.0, 1.0)
+        low[self.base_dim :] = -1.0
+        high[self.base_dim :] = 1.0
         return low, high
 
 

@@ -209,6 +209,15 @@ def observation_entries(config: PursuitConfig) -> list[dict[str, Any]]:
         "none",
         unobserved="always observed",
     )
+    for j in range(config.n_pursuers - 1 if layout.headings else 0):
+        entry(
+            f"teammate_{j}.heading",
+            f"the {j}-th other pursuer's heading minus this drone's heading",
+            ego,
+            "rad",
+            "divided by π, in [−1, 1]",
+            unobserved=f"reads 0 beyond {config.perception_range} m or once disabled",
+        )
     assert len(out) == layout.dim
     return out
 

@@ -169,11 +169,14 @@ class MLPPolicy(Policy):
                     f"this scenario has {config.n_pursuers} vs {config.n_evaders}"
                 )
         inputs = self.weights[0].shape[1] - len(self.feature_indices)
-        if inputs != self.layout.dim:
+        if inputs not in (self.layout.dim, self.layout.base_dim):
             raise ValueError(
                 f"{name} was trained on observations of size {inputs}, "
                 f"this scenario has {self.layout.dim}"
             )
+        self.inputs = inputs
+        """the observation's first entries it reads: all of them, or, trained without the
+        teammates' headings, those before them"""
 
     @classmethod
     def load(
@@ -206,8 +209,10 @@ class MLPPolicy(Policy):
         return self.forward_features(self.with_features(torch.as_tensor(obs, dtype=torch.float32)))
 
     def with_features(self, obs: np.ndarray | torch.Tensor) -> torch.Tensor:
-        """The observations [N, D] with this actor's proximity features appended [N, D']."""
-        return proximity_features(torch.as_tensor(obs), self.feature_indices, self.feature_gain)
+        """The observations [N, D] with this actor's proximity features appended [N, D']
+        (the entries it was trained on: without the teammates' headings if so)."""
+        obs = torch.as_tensor(obs)[:, : self.inputs]
+        return proximity_features(obs, self.feature_indices, self.feature_gain)
 
     @torch.no_grad()
     def forward_features(self, x: torch.Tensor) -> torch.Tensor:

@@ -74,6 +74,17 @@ def test_defaults_match_spec_table():
     assert cfg.obs_dim == 16
 
 
+@pytest.mark.parametrize(("n_p", "n_e"), [(1, 1), (3, 2), (5, 3)])
+@pytest.mark.parametrize("headings", [False, True])
+def test_obs_dim_is_the_layouts(n_p, n_e, headings):
+    from hola_ray.env.layout import ObsLayout
+
+    cfg = PursuitConfig(n_pursuers=n_p, n_evaders=n_e, observe_headings=headings)
+    layout = ObsLayout.from_config(cfg)
+    assert cfg.obs_dim == layout.dim == layout.base_dim + (n_p - 1) * headings
+    assert len(layout.bounds(cfg)[0]) == cfg.obs_dim
+
+
 def test_yaml_round_trip(tmp_path):
     cfg = PursuitConfig(n_pursuers=4, n_evaders=1, evader=EvaderConfig(slip_range=0.4))
     path = tmp_path / "env.yaml"

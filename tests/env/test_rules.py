@@ -234,3 +234,47 @@ def test_proximity_penalties(frozen_config):
     result = shaped.step(np.full((1, 3), 0.5))
     np.testing.assert_allclose(result.reward[0] - plain, [-2.0, -0.5, -0.5], atol=1e-12)
     assert not result.disabled.any()
+
+
+def test_graded_teammate_penalty(frozen_config):
+    """`reward.teammate_graded`: pursuers 1 and 2 fly in parallel 0.25 m apart, so with a
+    0.4 m reach the penalty is 0.5 · (0.4 − 0.25) / (0.4 − κ) = 0.375 each, not 0.5;
+    pursuer 0, 1.35 m away, pays nothing."""
+    pursuers = np.array([[0.3, 2.0], [1.5, 2.0], [1.75, 2.0]])
+    evaders = far_evaders(frozen_config)
+    base = single(frozen_config, pursuer_pos=pursuers, evader_pos=evaders)
+    graded = dataclasses.replace(
+        frozen_config.reward, teammate_penalty=0.5, teammate_distance=0.4, teammate_graded=True
+    )
+    shaped = single(
+        dataclasses.replace(frozen_config, reward=graded), pursuer_pos=pursuers, evader_pos=evaders
+    )
+    plain = base.step(np.full((1, 3), 0.5)).reward[0].copy()
+    result = shaped.step(np.full((1, 3), 0.5))
+    np.testing.assert_allclose(result.reward[0] - plain, [0.0, -0.375, -0.375], atol=1e-9)
+
+
+def test_observed_headings_follow_the_unchanged_observation(frozen_config):
+    """`observe_headings`: the observation's first entries are the plain layout's, bit for
+    bit; then each other pursuer's heading relative to the observer's / π, in seat order,
+    0 for a teammate beyond d_p or disabled."""
+    headings = dataclasses.replace(frozen_config, observe_headings=True)
+    # pursuer 2 sits 2.5 m from pursuer 0 (beyond d_p = 2), 1.5 m from pursuer 1
+    pursuers = np.array([[0.5, 1.6], [1.5, 2.0], [3.0, 2.0]])
+    state = {
+        "pursuer_pos": pursuers,
+        "pursuer_heading": np.array([UP, 0.0, math.pi * 0.75]),
+        "evader_pos": far_evaders(frozen_config),
+    }
+    plain, seen = single(frozen_config, **state), single(headings, **state)
+    base = frozen_config.obs_dim
+    assert seen.obs.shape[-1] == base + 2
+    np.testing.assert_array_equal(seen.obs[..., :base], plain.obs)
+    expected = [
+        [(0.0 - UP) / math.pi, 0.0],  # pursuer 0: pursuer 1, then pursuer 2 (too far)
+        [UP / math.pi, 0.75],  # pursuer 1: pursuers 0 and 2
+        [0.0, -0.75],  # pursuer 2: pursuer 0 (too far), pursuer 1
+    ]
+    np.testing.assert_allclose(seen.obs[0, :, base:], expected, atol=1e-6)
+    low, high = seen.layout.bounds(headings)
+    assert (low[base:] == -1).all() and (high[base:] == 1).all()

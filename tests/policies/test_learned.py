@@ -133,3 +133,19 @@ def test_a_stack_plays_each_actor_as_the_actor_plays_alone():
             np.testing.assert_allclose(actions[rows], actor.act(obs[rows]), rtol=0, atol=1e-6)
     with pytest.raises(ValueError, match="one layout"):
         MLPStack([actors[0], MLPPolicy(CONFIG, random_export(LAYOUT.dim, hidden=(16,)))])
+
+
+def test_an_actor_trained_without_headings_reads_the_observations_first_entries():
+    """An actor of the plain layout plays in a scenario that observes the teammates'
+    headings as it plays the same rows without them; one of neither size is refused."""
+    from hola_ray.policies.learned import random_export
+
+    seen = PursuitConfig(n_pursuers=3, n_evaders=1, observe_headings=True)
+    export = random_export(LAYOUT.dim, hidden=(16,), seed=3)
+    wide = np.concatenate([OBS, np.random.default_rng(1).uniform(-1, 1, (40, 2))], axis=1)
+    wide = wide.astype(np.float32)
+    np.testing.assert_array_equal(
+        MLPPolicy(seen, export).act(wide), MLPPolicy(CONFIG, export).act(OBS)
+    )
+    with pytest.raises(ValueError, match="observations of size"):
+        MLPPolicy(seen, random_export(LAYOUT.dim + 1, hidden=(16,)))
