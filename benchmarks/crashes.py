@@ -58,20 +58,33 @@ def crashes(config: PursuitConfig, team: list, episodes: int, seed: int, dynamic
     steps: list[int] = []
     evaders_left: list[int] = []
     mates_left: list[int] = []  # at each of the learner's crashes: teammates still flying
+    # at each crash into a teammate, from the step before: the nearest live evader's
+    # distance and the angle between the two pursuers' headings
+    mate_evader: list[float] = []
+    mate_angle: list[float] = []
     while not env.done.all():
         actions = np.stack([team[i].act(obs[:, i]) for i in range(n_p)], axis=1)
         before = env.pursuer_active & ~env.done[:, None]
+        was_at, was_heading = env.pursuer_pos.copy(), env.pursuer_heading.copy()
+        evaders_at, evaders_alive = env.evader_pos.copy(), env.evader_alive.copy()
         actions = actions.reshape(episodes, n_p)
         obs = env.step(actions, fly(actions) if fly is not None else None).obs
         for b, i in zip(*np.nonzero(before & ~env.pursuer_active), strict=True):
             p = env.pursuer_pos[b, i]
             wall = min(p[0], config.arena_width - p[0], p[1], config.arena_height - p[1])
-            mate = any(
-                before[b, j]
-                and np.hypot(*(env.pursuer_pos[b, j] - p)) < config.pursuer_collision_distance
+            mates = [
+                j
                 for j in range(n_p)
                 if j != i
-            )
+                and before[b, j]
+                and np.hypot(*(env.pursuer_pos[b, j] - p)) < config.pursuer_collision_distance
+            ]
+            mate = bool(mates)
+            if mate:
+                gaps = np.linalg.norm(evaders_at[b] - was_at[b, i], axis=-1)
+                mate_evader.append(float(np.where(evaders_alive[b], gaps, np.inf).min()))
+                turn = was_heading[b, mates[0]] - was_heading[b, i]
+                mate_angle.append(abs(float(np.angle(np.exp(1j * turn)))))
             if wall < config.safe_radius:
                 kind = "wall"
             elif bar_distance(config, p) < config.safe_radius:
@@ -96,7 +109,14 @@ def crashes(config: PursuitConfig, team: list, episodes: int, seed: int, dynamic
         .astype(int)
         .tolist(),
         "learner_mates_left_at_crash": np.bincount(mates_left, minlength=n_p).astype(int).tolist(),
+        "mate_crash_evader_m_quartiles": quartiles(mate_evader),
+        "mate_crash_heading_angle_deg_quartiles": quartiles(np.degrees(mate_angle)),
     }
+
+
+def quartiles(values) -> list[float]:
+    """The 25th, 50th and 75th percentiles, rounded; [] for none."""
+    return np.percentile(values, [25, 50, 75]).round(2).tolist() if len(values) else []
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -144,7 +164,10 @@ def main(argv: list[str] | None = None) -> int:
                 f"{column}{path}: success {r['success']:.1%}, collision {r['collision']:.1%}, "
                 f"crashes {r['crashes']} (the learner's {r['learner_crashes']}), per seat "
                 f"{r['seat_crash_rate']}, at step {r['crash_step_quartiles']} (quartiles); "
-                f"teammates flying when the learner crashed {r['learner_mates_left_at_crash']}"
+                f"teammates flying when the learner crashed {r['learner_mates_left_at_crash']}; "
+                f"crashes into a teammate: the nearest evader "
+                f"{r['mate_crash_evader_m_quartiles']} m away, the two headings "
+                f"{r['mate_crash_heading_angle_deg_quartiles']}° apart (quartiles)"
             )
     print(json.dumps(out))
     return 0
