@@ -75,6 +75,8 @@ def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(
     # asked for once its commands ran: the other worker makes it meanwhile (both start first)
     smoke_run = request.getfixturevalue("smoke_run")
     out = seen["out"]
+    # a base inside the repository is saved relative to it: no path of this machine
+    assert yaml.safe_load((out / "experiment.yaml").read_text())["base"] == "configs/smoke.yaml"
     first = out / "trials" / "hola-s0"
     assert seen["first done said"], "the experiment ended before its first trial was done"
     assert seen["states"][0] == "done" and seen["states"][1] != "done", seen["states"]

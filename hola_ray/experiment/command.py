@@ -38,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     from hola_ray.env.config import ConfigError
     from hola_ray.experiment.config import CONFIG_NAME, Experiment
     from hola_ray.experiment.runner import Runner
-    from hola_ray.homes import RUNS
+    from hola_ray.homes import ROOT, RUNS
 
     try:
         if args.resume is not None:
@@ -61,9 +61,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.resume is None:
         out.mkdir(parents=True, exist_ok=True)
-        # the base is resolved now, so that the saved copy does not depend on where it lives
+        # the base is resolved now, so that the saved copy does not depend on where it
+        # lives; one inside the repository is saved relative to it (`Experiment.base_path`
+        # reads it so), so that a published copy names no path of this machine
+        base = experiment.base_path().resolve()
+        if base.is_relative_to(ROOT.resolve()):
+            base = base.relative_to(ROOT.resolve())
         saved = {
-            "base": str(experiment.base_path().resolve()),
+            "base": str(base),
             "overrides": experiment.overrides,
             "methods": experiment.methods,
             "seeds": list(experiment.seeds),
