@@ -27,6 +27,7 @@ import numpy as np
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
+from hola_ray.env.geometry import wrap
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.policies.base import seated
 from hola_ray.policies.registry import load_policy, make_policy, trained_scenario
@@ -84,7 +85,7 @@ def crashes(config: PursuitConfig, team: list, episodes: int, seed: int, dynamic
                 gaps = np.linalg.norm(evaders_at[b] - was_at[b, i], axis=-1)
                 mate_evader.append(float(np.where(evaders_alive[b], gaps, np.inf).min()))
                 turn = was_heading[b, mates[0]] - was_heading[b, i]
-                mate_angle.append(abs(float(np.angle(np.exp(1j * turn)))))
+                mate_angle.append(abs(wrap(float(turn))))
             if wall < config.safe_radius:
                 kind = "wall"
             elif bar_distance(config, p) < config.safe_radius:

@@ -62,14 +62,10 @@ class ObsLayout:
         return [self.obstacle] + [self.teammates + 2 * j for j in range(self.n_pursuers - 1)]
 
     @property
-    def mate_headings(self) -> int:
-        """Offset of the first teammate heading (present only with `headings`)."""
-        return self.own + 4
-
-    @property
     def base_dim(self) -> int:
         """Length of the observation without the teammates' headings: what a policy trained
-        without them reads (the observation's first entries)."""
+        without them reads (the observation's first entries); with `headings`, the offset
+        of the first teammate heading."""
         return self.own + 4
 
     @property
