@@ -31,7 +31,7 @@ DEFAULT: dict[str, Any] = {
     "env": {
         "n_pursuers": 3,
         "n_evaders": 1,
-        "reward": {"obstacle_penalty": 0.5, "teammate_penalty": 0.5, "approach": "own_move"},
+        "reward": {"obstacle_penalty": 0.5, "teammate_penalty": 0.5, "approach": "distance"},
     },
     "oracle": {
         "budget": "learner_samples",

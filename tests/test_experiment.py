@@ -95,6 +95,7 @@ def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(
     results = json.loads((out / "results.json").read_text())
     assert set(results["trials"]) == {"hola-s0", "sp-s0"}
     for trial in results["trials"].values():
+        assert 0 < trial["learner_train_s"] <= trial["train_s"]  # generation 0 not counted
         assert set(trial["pools"]) == {"hot", "het"}
         for figures in trial["pools"].values():
             for key in ("success", "collision", "length", "score"):

@@ -478,7 +478,8 @@ class Runner:
     def budget_spent(self, trial: str) -> dict[str, Any]:
         """What a trial's training took: env steps, the learner's own transitions and
         gradient steps (cumulative, at its last generation), pre-training env steps, the
-        wall time of all its generations, and for a method with a rival rule the largest
+        wall time of all its generations (`train_s`, generation 0's population build
+        included) and of the learner's own (`learner_train_s`: generations 1 on), and for a method with a rival rule the largest
         distance between its φ and the rival's (`phi_tv_max`)."""
         from hola_ray.experiment.tasks import RESTORED
         from hola_ray.population.rundir import RunDir, phi_departure
@@ -505,6 +506,9 @@ class Runner:
             "gradient_steps": int(number(last, "gradient_steps")),
             "pretrain_env_steps": int(number(rows[0], "pretrain_env_steps")),
             "train_s": round(float(last["cumulative_wall_s"]), 1),
+            "learner_train_s": round(
+                float(last["cumulative_wall_s"]) - float(rows[0]["cumulative_wall_s"]), 1
+            ),
         }
 
     def run(self) -> dict[str, Any]:

@@ -51,9 +51,14 @@ def test_a_method_without_a_population_takes_only_its_start_from_the_shipped_one
     zero = resolve(alone, RunDir(tmp_path / "alone"))
     assert (zero.source, zero.learner_start) == ("none", "random")
     zero = resolve(RunConfig.from_dict(DEFAULT), RunDir(tmp_path / "hola"))
-    assert (zero.source, zero.learner_start) == ("reweigh", "member") and zero.differ
+    # built in the default's own scenario and reward: G_0 is taken as shipped
+    assert (zero.source, zero.learner_start) == ("shipped", "member") and not zero.differ
     assert zero.donor.name == "mep-3v1-s0" and zero.manifest["kind"] == "mep"
-    assert not (tmp_path / "hola").exists()  # nothing written
+    # under another reward than the build's, its G_0 is weighed again
+    own = DEFAULT | {"env": {**DEFAULT["env"], "reward": {"approach": "own_move"}}}
+    zero = resolve(RunConfig.from_dict(own), RunDir(tmp_path / "own"))
+    assert (zero.source, zero.learner_start) == ("reweigh", "member") and zero.differ
+    assert not (tmp_path / "hola").exists() and not (tmp_path / "own").exists()  # nothing written
 
 
 def test_a_common_start_is_taken_by_every_method_but_never_from_a_partner(tmp_path):
