@@ -95,12 +95,15 @@ def test_smoke_experiment_killed_after_one_trial_resumes_without_rerunning_it(
     results = json.loads((out / "results.json").read_text())
     assert set(results["trials"]) == {"hola-s0", "sp-s0"}
     for trial in results["trials"].values():
-        assert 0 < trial["learner_train_s"] <= trial["train_s"]  # generation 0 not counted
+        assert 0 < trial["learner_train_s"] <= trial["train_s"]
         assert set(trial["pools"]) == {"hot", "het"}
         for figures in trial["pools"].values():
             for key in ("success", "collision", "length", "score"):
                 assert np.isfinite(figures[key])
             assert 0 <= figures["success"] <= 1 and 0 <= figures["score"] <= 1
+    hola, sp = results["trials"]["hola-s0"], results["trials"]["sp-s0"]
+    assert hola["learner_train_s"] < hola["train_s"]  # its generation 0 is not the learner's
+    assert sp["learner_train_s"] == sp["train_s"]  # self-play has no generation 0
     assert set(results["methods"]) == {"hola", "sp"}
     assert (out / "figure.png").stat().st_size > 0
     assert "| hola | het |" in (out / "results.md").read_text()

@@ -499,6 +499,8 @@ class Runner:
             return float(value) if value not in ("", None) else 0.0
 
         departed = phi_departure(rows)
+        # generation 0 (a population's build or adoption) has a row only where there is one
+        zero = rows[0] if int(number(rows[0], "generation")) == 0 else None
         return {
             **({} if departed is None else {"phi_tv_max": round(departed, 6)}),
             "env_steps": int(number(last, "env_steps")),
@@ -507,7 +509,9 @@ class Runner:
             "pretrain_env_steps": int(number(rows[0], "pretrain_env_steps")),
             "train_s": round(float(last["cumulative_wall_s"]), 1),
             "learner_train_s": round(
-                float(last["cumulative_wall_s"]) - float(rows[0]["cumulative_wall_s"]), 1
+                float(last["cumulative_wall_s"])
+                - (float(zero["cumulative_wall_s"]) if zero else 0.0),
+                1,
             ),
         }
 
