@@ -28,6 +28,37 @@ def make_dir(path: Path, flag: str = "--out") -> None:
         raise ConfigError(f"{flag} {path} cannot be created: {why}") from None
 
 
+def port(text: str) -> int:
+    """argparse type of a TCP port: a whole number in 1–65535."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a port is a whole number, not {text!r}") from None
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"a port is in 1–65535, not {value}")
+    return value
+
+
+def require_free_port(port: int | None, flag: str) -> None:
+    """A ConfigError when nothing of this machine could listen on `port` (another process
+    holds it), checked before Ray starts: Ray would wait about 30 s for its metrics agent
+    and end in its startup traceback. Nothing to check without a port, or on a cluster
+    (RAY_ADDRESS: the nodes serve on their own ports)."""
+    import os
+    import socket
+
+    from hola_ray.env.config import ConfigError
+
+    if port is None or os.environ.get("RAY_ADDRESS"):
+        return
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind(("", port))
+        except OSError as err:
+            why = err.strerror or type(err).__name__
+            raise ConfigError(f"{flag} {port}: {why}; choose a free port") from None
+
+
 def fail(message: str) -> int:
     """Print `error: message` as one line on stderr; the exit code 2 to return."""
     print(f"error: {' '.join(str(message).split())}", file=sys.stderr)

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from hola_ray import interrupt
-from hola_ray.cli import apply_sets, make_dir
+from hola_ray.cli import OneLineParser, apply_sets, make_dir, port, require_free_port
 from hola_ray.env.config import ConfigError, load_yaml, located
 from hola_ray.homes import RUNS
 
@@ -59,9 +59,7 @@ DEFAULT: dict[str, Any] = {
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog="python -m hola_ray.run", description=__doc__.split("\n\n")[0]
-    )
+    parser = OneLineParser(prog="python -m hola_ray.run", description=__doc__.split("\n\n")[0])
     parser.add_argument("--config", type=Path, help="run config YAML (default: embedded)")
     parser.add_argument("--out", type=Path, help="run directory (default runs/<method>-<time>)")
     parser.add_argument(
@@ -93,7 +91,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     )
     parser.add_argument(
         "--metrics-port",
-        type=int,
+        type=port,
         metavar="PORT",
         help="serve the run's figures (hola_ray_*) and Ray's as Prometheus text on "
         "127.0.0.1:PORT/metrics (a local Ray; a cluster's port is its own)",
@@ -217,6 +215,7 @@ def main(argv: list[str] | None = None, started: float | None = None) -> int:
     args = parse_args(argv)
     try:
         config, out = resolve(args)
+        require_free_port(args.metrics_port, "--metrics-port")
     except (ConfigError, RuntimeError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -106,3 +106,43 @@ def test_an_out_that_cannot_be_created_is_one_line_naming_it(tmp_path, capsys, c
         argv += ["--config", str(POOLS_DIR.parent / "configs" / "experiments" / "smoke.yaml")]
     assert importlib.import_module(f"hola_ray.{command}").main(argv) == 2
     one_line(capsys, f"--out {out} cannot be created: Not a directory")
+
+
+@pytest.mark.parametrize("command", ["run", "experiment"])
+def test_a_bad_or_taken_metrics_port_is_one_line_before_ray_starts(
+    tmp_path, capsys, monkeypatch, command
+):
+    """Out of range, or held by another process: one line, before Ray starts (Ray would
+    wait about 30 s for its metrics agent and end in a traceback)."""
+    import socket
+
+    from hola_ray.experiment.command import main as experiment
+    from hola_ray.homes import ROOT
+    from hola_ray.run import main as run
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    main, args = {
+        "run": (run, ["--out", str(tmp_path / "run")]),
+        "experiment": (
+            experiment,
+            [
+                "--config",
+                str(ROOT / "configs/experiments/smoke.yaml"),
+                "--out",
+                str(tmp_path / "e"),
+            ],
+        ),
+    }[command]
+    with pytest.raises(SystemExit) as ended:
+        main([*args, "--metrics-port", "99999"])
+    assert ended.value.code == 2
+    one_line(capsys, "argument --metrics-port: a port is in 1–65535, not 99999")
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as held:
+        held.bind(("127.0.0.1", 0))
+        held.listen()
+        taken = held.getsockname()[1]
+        assert main([*args, "--metrics-port", str(taken)]) == 2
+    one_line(capsys, f"--metrics-port {taken}: Address already in use; choose a free port")
+    import ray
+
+    assert not ray.is_initialized()

@@ -8,16 +8,17 @@ The experiment config and what the command does: `hola_ray.experiment`'s doc.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 import yaml
 
+from hola_ray.cli import OneLineParser, port
+
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="python -m hola_ray.experiment", description=__doc__.split("\n\n")[0]
     )
     parser.add_argument("--config", type=Path, help="experiment YAML (configs/experiments/)")
@@ -26,7 +27,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--num-cpus", type=int, help="CPUs of the local Ray (default: all)")
     parser.add_argument(
         "--metrics-port",
-        type=int,
+        type=port,
         metavar="PORT",
         help="serve the trials' figures (hola_ray_*) and Ray's as Prometheus text on "
         "127.0.0.1:PORT/metrics (a local Ray; a cluster's port is its own)",
@@ -34,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     # imported here, not above: `script` re-runs the command under the fixed hash seed
     # before torch, Ray and RLlib (which the experiment's methods import) load
-    from hola_ray.cli import make_dir
+    from hola_ray.cli import make_dir, require_free_port
     from hola_ray.env.config import ConfigError
     from hola_ray.experiment.config import CONFIG_NAME, Experiment
     from hola_ray.experiment.runner import Runner
@@ -56,6 +57,7 @@ def main(argv: list[str] | None = None) -> int:
             if (out / CONFIG_NAME).is_file():
                 raise ConfigError(f"{out} already holds an experiment; continue it with --resume")
             make_dir(out)
+        require_free_port(args.metrics_port, "--metrics-port")
     except ConfigError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -479,8 +479,9 @@ class Runner:
         """What a trial's training took: env steps, the learner's own transitions and
         gradient steps (cumulative, at its last generation), pre-training env steps, the
         wall time of all its generations (`train_s`, generation 0's population build
-        included) and of the learner's own (`learner_train_s`: generations 1 on), and for a method with a rival rule the largest
-        distance between its φ and the rival's (`phi_tv_max`)."""
+        included) and of the learner's own (`learner_train_s`: generations 1 on), and for
+        a method with a rival rule the largest distance between its φ and the rival's
+        (`phi_tv_max`)."""
         from hola_ray.experiment.tasks import RESTORED
         from hola_ray.population.rundir import RunDir, phi_departure
 
