@@ -31,6 +31,7 @@ from pathlib import Path
 import ray
 import torch
 
+from hola_ray.clock import column
 from hola_ray.methods.config import SAMPLERS, RunConfig
 from hola_ray.policies.learned import FORMAT
 from hola_ray.population.evaluators import EvaluatorPool
@@ -160,7 +161,7 @@ def generation_breakdown(config: RunConfig) -> dict[str, float]:
         "g0_grapher_s": pre["grapher_s"],
         "oracle_s": gen["oracle_s"],
         "grapher_s": gen["grapher_s"],
-        "coordinator_s": gen["coordinator_s"] + gen["persist_s"],
+        "coordinator_s": gen[column("coordinator")] + gen["persist_s"],
     }
     print("  one generation: " + ", ".join(f"{k} {v:.1f}" for k, v in parts.items()))
     return parts
@@ -189,7 +190,10 @@ def main() -> None:
     short = dataclasses.replace(
         default,
         oracle=dataclasses.replace(default.oracle, env_steps=steps),
-        pretrain=dataclasses.replace(default.pretrain, env_steps=steps),
+        # generation 0 pre-trained here (the default adopts a shipped population)
+        pretrain=dataclasses.replace(
+            default.pretrain, env_steps=steps, population="none", learner_start="random"
+        ),
     )
     parts = generation_breakdown(short)
     ray.shutdown()
