@@ -2,7 +2,7 @@
 same seeds and teams (issue 23's table).
 
     python benchmarks/flight_gap.py POLICY [POLICY ...] [--episodes 64] [--seed 0]
-        [--evaders 1 2] [--json OUT.json] [--guard]
+        [--evaders 1 2] [--json OUT.json] [--guard] [--horizon STEPS]
 
 POLICY: a run directory (`RUN:best` for its best.pt), a generation folder, an export file
 or a pool member id. Each policy flies in three copies and beside Greedy + VICSEK (the
@@ -75,6 +75,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--evaders", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--guard", action="store_true", help="fly with the safety filter")
+    parser.add_argument("--horizon", type=int, help="shorter episodes (a smoke run)")
     args = parser.parse_args(argv)
     guard = Guard() if args.guard else None
     rows = []
@@ -97,7 +98,10 @@ def main(argv: list[str] | None = None) -> int:
                 team = [seat0] * config.n_pursuers
                 if mates is not None:
                     team = [seat0, *(by_name(m, config) for m in mates)]
-                r = cell(team, config, args.episodes, args.seed, guard)
+                flown = config
+                if args.horizon is not None:
+                    flown = dataclasses.replace(config, horizon=args.horizon)
+                r = cell(team, flown, args.episodes, args.seed, guard)
                 scenario = f"{config.n_pursuers} vs {config.n_evaders}"
                 rows.append({"policy": spec, "scenario": scenario, "team": label} | r)
                 print(

@@ -2,16 +2,18 @@
 copies and beside the validation teammates (what a choice may rest on; never Greedy, VICSEK
 or a pool member), flown only.
 
-    python benchmarks/guard_choice.py EPISODES RUN [RUN ...]
+    python benchmarks/guard_choice.py EPISODES RUN [RUN ...] [--horizon STEPS]
 
 Each RUN's best.pt flies on the same episode seeds (seed 0) with no guard and with each
 candidate (margin m, gain /s); per candidate and team, the mean over the runs of success,
 collision, the learner's own crash rate and its teammates'. Judged by the paper's rules
-whatever arena the runs trained in. The last line is one JSON object.
+whatever arena the runs trained in (`--horizon` shortens its episodes: a smoke run). The
+last line is one JSON object.
 """
 
 from __future__ import annotations
 
+import argparse
 import functools
 import json
 import sys
@@ -27,8 +29,13 @@ from hola_ray.policies.learned import MLPPolicy
 CANDIDATES = (None, Guard(0.05, 2.0), Guard(0.02, 2.0), Guard(0.05, 4.0), Guard(0.10, 2.0))
 
 
-def main(argv: list[str]) -> int:
-    episodes, runs = int(argv[0]), argv[1:]
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python benchmarks/guard_choice.py")
+    parser.add_argument("episodes", type=int)
+    parser.add_argument("runs", nargs="+")
+    parser.add_argument("--horizon", type=int, default=PursuitConfig().horizon)
+    args = parser.parse_args(argv)
+    episodes, runs = args.episodes, args.runs
     out = []
     for guard in CANDIDATES:
         drones = functools.partial(Crazyflies, guard=guard)
@@ -36,7 +43,9 @@ def main(argv: list[str]) -> int:
         for run in runs:
             policy = MLPPolicy.load(f"{run}/best.pt")
             trained = policy.config
-            config = PursuitConfig(n_pursuers=trained.n_pursuers, n_evaders=trained.n_evaders)
+            config = PursuitConfig(
+                n_pursuers=trained.n_pursuers, n_evaders=trained.n_evaders, horizon=args.horizon
+            )
             mates = validation_mates(config, config.n_pursuers - 1)
             teams = {"copies": [policy] * config.n_pursuers, "validation": [policy, *mates]}
             for label, team in teams.items():
@@ -66,4 +75,4 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(main())
