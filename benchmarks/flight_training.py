@@ -3,7 +3,7 @@ trained in a changed one ("response": the fitted response model env.pursuer_resp
 any other env setting), seed by seed, every one judged by the paper's rules.
 
     python benchmarks/flight_training.py EPISODES BASE_RUN,BASE_RUN,... NEW_RUN,NEW_RUN,...
-        [--guard] [--teams copies validation hand]
+        [--guard] [--teams copies validation hand] [--horizon STEPS]
 
 Each run's best.pt flies (and plays the paper's kinematic arena) on the same episode seeds
 in three copies, beside the validation teammates (sp-v1, sp-v2: what a choice may rest on)
@@ -12,12 +12,14 @@ up in the order given (training seed i of each arm); the difference response −
 is averaged over the pairs, with a 95 % bootstrap interval that resamples the episodes
 within each pair (with few pairs it leaves out most of the seed-to-seed noise: read the
 per-pair values beside it). `--guard` flies (and plays the arena) through the ground
-station's safety filter; `--teams` plays only the teams named.
+station's safety filter; `--teams` plays only the teams named; `--horizon` shortens the
+episodes (a smoke run). The last line is one JSON object.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
 import numpy as np
@@ -48,6 +50,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("new")
     parser.add_argument("--guard", action="store_true")
     parser.add_argument("--teams", nargs="+", choices=TEAMS, default=list(TEAMS))
+    parser.add_argument("--horizon", type=int, default=PursuitConfig().horizon)
     args = parser.parse_args(argv)
     episodes, guard = args.episodes, Guard() if args.guard else None
     arms = {"kinematic": args.base.split(","), "response": args.new.split(",")}
@@ -57,7 +60,9 @@ def main(argv: list[str]) -> int:
             policy = MLPPolicy.load(f"{run}/best.pt")
             # judged by the paper's rules whatever arena it trained in
             trained = policy.config
-            config = PursuitConfig(n_pursuers=trained.n_pursuers, n_evaders=trained.n_evaders)
+            config = PursuitConfig(
+                n_pursuers=trained.n_pursuers, n_evaders=trained.n_evaders, horizon=args.horizon
+            )
             for label, team in teams(policy, config).items():
                 if label not in args.teams:
                     continue
@@ -77,6 +82,7 @@ def main(argv: list[str]) -> int:
                 )
     rng = np.random.default_rng(0)
     pairs = list(zip(arms["kinematic"], arms["response"], strict=True))
+    summary = {}
     for label in args.teams:
         for key in ("succ", "coll", "own"):
             diffs = [
@@ -91,10 +97,12 @@ def main(argv: list[str]) -> int:
             ]
             lo, hi = np.percentile(boots, [2.5, 97.5])
             per = ", ".join(f"{d.mean() * 100:+.1f}" for d in diffs)
+            summary[f"{label}_{key}"] = {"mean": mean, "ci95": [float(lo), float(hi)]}
             print(
                 f"{label} {key}: response - kinematic = {mean * 100:+.1f} "
                 f"[{lo * 100:+.1f}, {hi * 100:+.1f}] (per seed pair: {per})"
             )
+    print(json.dumps({"episodes": episodes, "response_minus_kinematic": summary}))
     return 0
 
 

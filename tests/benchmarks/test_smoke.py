@@ -26,6 +26,10 @@ SMOKE = {
         [str(LEARNER / "best.pt"), "--teammates", "greedy", "vicsek", "--episodes", "2"],
         "its own seat crashed",
     ),
+    "flight_training.py": (
+        ["2", str(LEARNER.parent / "hola-s1"), str(LEARNER), "--horizon", "60"],
+        "response - kinematic",
+    ),
     "flight_gap.py": (
         [f"{LEARNER}:best", "--episodes", "2", "--horizon", "60"],
         "+ Greedy, VICSEK",
@@ -40,7 +44,6 @@ TESTED_ELSEWHERE = {
     "time_to_competence.py": "tests/benchmarks/test_time_to_competence.py",
 }
 NOT_YET = {
-    "flight_training.py",
     "learning.py",
     "oracle_speed.py",
     "profile_sampling.py",
