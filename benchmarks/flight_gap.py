@@ -1,5 +1,5 @@
 """The sim-to-sim gap: each policy flown as Crazyflies against the kinematic arena, on the
-same seeds and teams (issue 23's table).
+same seeds and teams (docs/flight.md's table).
 
     python benchmarks/flight_gap.py POLICY [POLICY ...] [--episodes 64] [--seed 0]
         [--evaders 1 2] [--json OUT.json] [--guard] [--horizon STEPS]

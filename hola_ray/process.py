@@ -49,22 +49,23 @@ fields; `ray.init` takes neither):
 
 - `dashboard_agent_listen_port` 0: the dashboard agent's HTTP server on a port the system
   picks, not the fixed 52365. With a second Ray on the machine (the suite's two workers, a
-  command beside a run or a population build) the fixed port is taken: the agent retried it
-  for 3.4 s (five back-offs) and gave up, and the raylet waits for the agent before it
-  registers, so every such `ray.init` waited 3.4 s for nothing (measured beside a running
-  Ray: 7.1 s against 4.4 s) and ran without the agent's server (Ray Jobs). 0 is Ray's own
-  "any free port": the agent records the port it bound where the dashboard looks it up.
+  command beside a run or a population build) the fixed port is taken: the agent retries it
+  through its back-offs and gives up, and the raylet waits for the agent before it
+  registers, so every such `ray.init` waits for nothing and runs without the agent's server
+  (Ray Jobs). 0 is Ray's own "any free port": the agent records the port it bound where
+  the dashboard looks it up.
 - `no_monitor`: no autoscaler monitor, a process that only drives an autoscaler, which a
-  local Ray has none of (0.6 core-s and 0.3 s of each start, and a poll every few
-  seconds). A cluster's nodes, started by `ray start`, keep theirs.
+  local Ray has none of (part of each start, and a poll every few seconds). A cluster's
+  nodes, started by `ray start`, keep theirs.
 
 And with `include_dashboard=False`, no dashboard head (`lean_local_ray`): Ray 2.60 starts
 one regardless, serving only its usage-stats module (usage reporting off) with its HTTP
-server off, and `ray.init` waits for it to announce itself before it starts the raylet:
-1.8–1.9 s against 2.6–3.9 s a start, and 1.1–1.4 core-s less (measured with an actor;
-process accounting). Nothing this project runs without the dashboard asks the head for
-anything (Ray's state API and Ray Jobs need its HTTP server, on only with the dashboard);
-the metrics a run exports (`--metrics-port`) are the dashboard agent's, which stays."""
+server off, and `ray.init` waits for it to announce itself before it starts the raylet,
+so without it a start is shorter and costs less CPU (docs/run_speed.md, "No dashboard
+head where the dashboard is off"). Nothing this project runs without the dashboard asks
+the head for anything (Ray's state API and Ray Jobs need its HTTP server, on only with
+the dashboard); the metrics a run exports (`--metrics-port`) are the dashboard agent's,
+which stays."""
 
 
 def lean_local_ray(log_monitor: bool = True) -> bool:
@@ -186,11 +187,11 @@ def fixed_hash_seed(module: str, argv: list[str]) -> None:
 
 def leave(code: int | None) -> NoReturn:
     """`sys.exit(code)` at a command's end, every live object frozen first: the
-    interpreter's last collection would walk the half million that torch, RLlib and Ray made,
-    2 s at each exit of `hola_ray.run` (measured; 0.3 s frozen). After a success, a Ray this
-    process still holds is shut down here rather than by Ray's exit hook, which first sleeps
-    0.5 s for its workers' last log lines (a finished command's workers have none left; a
-    failed one's may explain the failure)."""
+    interpreter's last collection would walk the half million objects that torch, RLlib and
+    Ray made, seconds at each exit of `hola_ray.run`. After a success, a Ray this process
+    still holds is shut down here rather than by Ray's exit hook, which first sleeps for its
+    workers' last log lines (a finished command's workers have none left; a failed one's may
+    explain the failure)."""
     import gc
 
     gc.freeze()
@@ -213,10 +214,10 @@ def pin_threads(cpus) -> None:
 
     Ray's OMP_NUM_THREADS=1 does not reach them: a remote env runner ran torch on 2 threads
     and the simulator's parallel kernels on 2 OpenMP threads, which spin while another
-    process holds the second core. A sample of 8,192 env steps then took 4 s instead of
-    0.2 s beside a busy learner (on 2 cores; alone it is as fast on one thread); two
-    evaluation tasks side by side took 20 s instead of 1.4. Every Ray worker of this
-    project that steps the simulator or runs torch calls it with its CPU allotment."""
+    process holds the second core: beside a busy learner, or beside another evaluation
+    task, sampling then ran an order of magnitude slower than on one thread. Every Ray
+    worker of this project that steps the simulator or runs torch calls it with its CPU
+    allotment."""
     import numba
     import torch
 

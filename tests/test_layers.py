@@ -35,7 +35,7 @@ SHARED = {"cli", "clock", "homes", "interrupt", "process", "progress", "provenan
 """Top-level helper modules any package may import."""
 
 KNOWN: set[tuple[str, str]] = set()
-"""Upward imports not yet removed (none since issue 22)."""
+"""Upward imports not yet removed (none: keep it empty)."""
 
 
 def module_name(path: Path) -> str:

@@ -1,4 +1,4 @@
-"""The populations shipped under pools/populations/ (issue 35): the embedded default adopts
+"""The populations shipped under pools/populations/: the embedded default adopts
 a competent one, every one verifies and stays apart from the pools, and a member replays
 the team figures its manifest records."""
 
@@ -16,10 +16,10 @@ from hola_ray.run import DEFAULT
 
 SHIPPED = shipped.names()
 PARTNERS = [n for n in SHIPPED if not n.startswith("start-")]
-"""the partner populations; `start-*` are common starts (issue 47), not partners: one is
+"""the partner populations; `start-*` are common starts, not partners: one is
 below SPEC's bar on purpose (start-3v2-early, so that learners have room to move)"""
 GOALS = {"3v1": (0.85, 0.15), "3v2": (0.60, 0.35)}
-"""Issue 35's goal for a shipped member as a team of its own copies: success ≥, collision ≤"""
+"""SPEC's bar for a shipped member as a team of its own copies: success ≥, collision ≤"""
 BELOW_THE_COLLISION_BAR = ("-pilots", "-laptop")
 """populations shipped on, under a new name, as what earlier experiments trained beside"""
 
@@ -36,8 +36,8 @@ def test_the_default_run_adopts_a_shipped_population_that_fits_it():
 
 @pytest.mark.parametrize("name", PARTNERS)
 def test_every_shipped_member_pursues_as_a_team_of_its_copies(name):
-    """Issue 35's success goal for a shipped member as copies (≥ 85 % at 3 vs 1, ≥ 60 % at
-    3 vs 2) on ≥ 300 recorded episodes, and SPEC's collision bar (≤ 15 %, ≤ 35 %; issue 47)
+    """The success bar for a shipped member as copies (≥ 85 % at 3 vs 1, ≥ 60 % at
+    3 vs 2) on ≥ 300 recorded episodes, and SPEC's collision bar (≤ 15 %, ≤ 35 %)
     but in the two populations shipped below it as what was trained beside them
     (`mep-3v2-s0-pilots`, the pilots'; `mep-3v1-s0-laptop`, the comparison at competence's,
     whose members collide in 17–23 %: docs/populations.md)."""

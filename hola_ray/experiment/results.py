@@ -131,7 +131,7 @@ def results_table(
 
 
 GOAL_WIDTH = 0.12
-"""issue 47's design goal: a hola − X success interval with HeT that is not above zero is at
+"""the comparison's design goal: a hola − X success interval with HeT that is not above zero is at
 most 12 points wide"""
 
 

@@ -28,7 +28,7 @@ from hola_ray.env import ConfigError, EvaderConfig, PursuitConfig
         ({"reward": {"approach": "both"}}, "reward.approach", "distance or own_move"),
         ({"reward": {"teammate_distance": True}}, "reward.teammate_distance", "a finite number"),
         ({"reward": {"shared": "yes"}}, "reward.shared", "true or false"),
-        # types, before any range (issue 22): one line each, naming the field
+        # types, before any range: one line each, naming the field
         ({"n_pursuers": True}, "n_pursuers", "an integer"),
         ({"horizon": True}, "horizon", "an integer"),
         ({"horizon": "1000"}, "horizon", "an integer"),

@@ -74,8 +74,9 @@ def test_self_play_run_seats_one_learner_and_keeps_its_best(tmp_path, capsys):
 
 
 def test_random_weights_are_one_start_for_every_method_of_a_seed(tmp_path, capsys):
-    """`pretrain.learner_start: random` is a common start (issue 47): at one seed the
-    learner's initial weights are the same whichever method seats it (self-play, partners
+    """`pretrain.learner_start: random` is a common start (a comparison measures the
+    methods, not their starts): at one seed the learner's initial weights are the same
+    whichever method seats it (self-play, partners
     drawn by φ, FCP's larger population), and another seed's differ; PBT's agents, with
     `pbt.start: random`, are each a copy of them."""
     import numpy as np

@@ -681,9 +681,10 @@ def test_the_lean_pipeline_builds_rllibs_train_batch(local_learner, oracle):
 
 
 def test_every_method_starts_its_learner_from_the_same_weights_on_a_seed(ray_session):
-    """One start for every method (issue 47): on a seed, the learner's initial weights
-    are the same whether the Oracle seats it in every slot (sp), beside partners (hola; fcp,
-    mep, hola_r and uniform seat it alike) or among PBT's agents; another seed differs."""
+    """One start for every method (a comparison measures the methods): on a seed, the
+    learner's initial weights are the same whether the Oracle seats it in every slot (sp),
+    beside partners (hola; fcp, mep, hola_r and uniform seat it alike) or among PBT's
+    agents; another seed differs."""
     starts = {}
     for method, seed in (("sp", 3), ("hola", 3), ("pbt", 3), ("hola", 4)):
         raw = CONFIG.to_dict() | {"method": method, "seed": seed}
