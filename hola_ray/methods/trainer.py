@@ -27,7 +27,12 @@ from hola_ray.methods.config import RunConfig
 from hola_ray.methods.generation_zero import KEY_FILE, GenerationZero
 from hola_ray.methods.monitors import Monitoring, monitored, validation_teammates
 from hola_ray.oracle import LEARNER, Oracle
-from hola_ray.population.coordinator import opened, run_id, start_coordinator
+from hola_ray.population.coordinator import (
+    CoordinatorSettings,
+    opened,
+    run_id,
+    start_coordinator,
+)
 from hola_ray.population.evaluators import EvaluatorPool
 from hola_ray.population.files import TorchFile
 from hola_ray.population.grapher import edge_summary, weigh
@@ -99,17 +104,17 @@ class Trainer:
         self.run.create(c.to_yaml())
         with clock.phase("population"):
             generation_zero.take(zero, self.run, self.say)
-        self.coord = start_coordinator(
-            self.run.root,
-            method.rules(c),
-            c.population,
-            c.l,
-            c.seed,
-            c.grapher.edges_per_learner,
-            c.method,
-            method.rival(c),
-            self.tags,
+        settings = CoordinatorSettings(
+            rules=method.rules(c),
+            population=c.population,
+            l=c.l,
+            seed=c.seed,
+            edges_per_learner=c.grapher.edges_per_learner,
+            method=c.method,
+            rival=method.rival(c),
+            tags=self.tags or {},
         )
+        self.coord = start_coordinator(self.run.root, settings)
         with clock.phase("actors"):
             self.pool.start()  # they start while this driver goes on
         written: list[int] = []

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -65,26 +66,35 @@ def saved_population(state: Mapping[str, Any], config: PopulationConfig) -> Popu
     return population
 
 
+@dataclass(frozen=True)
+class CoordinatorSettings:
+    """What a run's coordinator decides by, from the run's config (no defaults of its own)."""
+
+    rules: Rules
+    """the method's φ and acceptance rule"""
+    population: PopulationConfig
+    l: int  # noqa: E741 - the paper's l
+    """hyperedge size (the team's pursuers)"""
+    seed: int
+    """the run's seed: the sampled hyperedges' and decisions' generators"""
+    edges_per_learner: int
+    """grapher.edges_per_learner: (l − 1)-sets sampled per learner, 0 = every one"""
+    method: str
+    rival: Rules | None = None
+    """the rule whose φ each generation's is compared with (`phi_tv`), if any"""
+    tags: Mapping[str, str] = field(default_factory=dict)
+    """the telemetry's run and trial tags; empty: the run directory's own"""
+
+
 @ray.remote(num_cpus=0, max_restarts=0)
 class Coordinator:
     """Owns `Population` and the run directory; one per run, named `coordinator:<run>`."""
 
-    def __init__(  # noqa: PLR0913
-        self,
-        run_dir: str,
-        rules: Rules,
-        population: PopulationConfig,
-        l: int,  # noqa: E741 - the paper's l
-        seed: int,
-        edges_per_learner: int = 0,
-        method: str = "",
-        rival: Rules | None = None,
-        tags: Mapping[str, str] | None = None,
-    ):
-        self.rules, self.seed, self.method = rules, seed, method
-        self.edges_per_learner = edges_per_learner
-        self.rival = rival
-        """the rule whose φ each generation's is compared with (`phi_tv`), if any"""
+    def __init__(self, run_dir: str, settings: CoordinatorSettings):
+        self.rules, self.seed, self.method = settings.rules, settings.seed, settings.method
+        self.edges_per_learner = settings.edges_per_learner
+        self.rival = settings.rival
+        l, population, tags = settings.l, settings.population, settings.tags  # noqa: E741
         self._phi_tv: float | None = None
         self.run = RunDir(run_dir)
         self.run.clean_partial()
@@ -296,9 +306,9 @@ class Coordinator:
         self.telemetry.close()
 
 
-def start_coordinator(run_dir: Path, *args: Any) -> Any:
-    """The coordinator of the run in `run_dir` (`Coordinator`'s other arguments after it),
-    named for the folder and placed on this node: it writes the folder this driver reads."""
+def start_coordinator(run_dir: Path, settings: CoordinatorSettings) -> Any:
+    """The coordinator of the run in `run_dir`, named for the folder and placed on this
+    node: it writes the folder this driver reads."""
     from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
     from hola_ray.process import NAMESPACE
@@ -308,7 +318,7 @@ def start_coordinator(run_dir: Path, *args: Any) -> Any:
         name=coordinator_name(str(run_dir)),
         namespace=NAMESPACE,
         scheduling_strategy=NodeAffinitySchedulingStrategy(node_id=here, soft=False),
-    ).remote(str(Path(run_dir).resolve()), *args)
+    ).remote(str(Path(run_dir).resolve()), settings)
 
 
 def opened(files: Any) -> dict[int, dict[str, Any]]:
