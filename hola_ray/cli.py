@@ -52,6 +52,9 @@ def require_free_port(port: int | None, flag: str) -> None:
     if port is None or os.environ.get("RAY_ADDRESS"):
         return
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        # as a server binds: a port another process listens on is refused, one a finished
+        # run left in TIME_WAIT is not
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             probe.bind(("", port))
         except OSError as err:
