@@ -21,6 +21,7 @@ import time
 
 import ray
 
+from hola_ray.homes import ROOT
 from hola_ray.methods.config import SAMPLERS, RunConfig
 from hola_ray.run import DEFAULT
 
@@ -42,7 +43,7 @@ def profile_runner(runner, steps: int, top: int) -> dict:
     for (path, line, name), (_, ncalls, tottime, _cum, _) in sorted(
         stats.stats.items(), key=lambda kv: -kv[1][2]
     )[:top]:
-        short = path.split("site-packages/")[-1].split("/work/main/")[-1]
+        short = path.split("site-packages/")[-1].split(f"{ROOT}/")[-1]
         rows.append(
             {
                 "function": f"{short}:{line}({name})",

@@ -15,7 +15,7 @@ import pytest
 from hola_ray.homes import ROOT
 
 BENCHMARKS = ROOT / "benchmarks"
-LEARNER = ROOT / "docs" / "competence-3v2" / "hola" / "trials" / "hola-s2"
+LEARNER = ROOT / "results" / "competence-3v2" / "hola" / "trials" / "hola-s2"
 """a committed 3 vs 2 learner (its run folder holds best.pt)"""
 
 SMOKE = {

@@ -207,7 +207,7 @@ def test_phi_kinds_coincide_on_a_regular_hypergraph(case):
     """MV_i = Σ_{T∋i} w(T)/l = (d_i/l)·(mean reward of i): with every node in the same
     number d of hyperedges the two values differ by the factor d/l, which φ ignores. G_0
     (every l-set of the initial members) is such a hypergraph, so hola and hola_r draw the
-    same partners until a member with a different degree joins (docs/hola-r.md)."""
+    same partners until a member with a different degree joins (results/NOTEBOOK.md)."""
     n, l, weights = case  # noqa: E741
     g = HyFoG(l=l)
     for v in range(n):
