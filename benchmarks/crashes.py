@@ -130,8 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     out = {}
     for path in args.policies:
-        scenario = trained_scenario(path)
-        config = PursuitConfig.from_dict(scenario) if scenario else PursuitConfig()
+        config = trained_scenario(path) or PursuitConfig()
         learner = load_policy(path, config)
         if args.teammates == ["copies"]:
             mates = [learner] * (config.n_pursuers - 1)

@@ -59,8 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     out = {}
     for path in args.policies:
-        scenario = trained_scenario(path)
-        config = PursuitConfig.from_dict(scenario) if scenario else PursuitConfig()
+        config = trained_scenario(path) or PursuitConfig()
         if len(args.teammates) != config.n_pursuers - 1:
             print(f"error: give {config.n_pursuers - 1} teammates", file=sys.stderr)
             return 2

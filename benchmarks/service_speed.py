@@ -81,7 +81,7 @@ def grapher_speed(config: RunConfig, members: int, episodes: int, rounds: int) -
     env = config.env
     exports = {n: random_export(env.obs_dim, config.oracle.hidden, n) for n in range(members)}
     edges = list(itertools.combinations(range(members), config.l))
-    pools = {workers: EvaluatorPool(env.to_dict(), workers) for workers in (1, 2)}
+    pools = {workers: EvaluatorPool(env, workers) for workers in (1, 2)}
     for pool in pools.values():  # each actor compiles the simulator as it starts
         ray.get([actor.ping.remote() for actor in pool.actors().values()])
     ref = ray.put(exports)

@@ -82,13 +82,11 @@ def bare_torch_update(config, rows: int, repeats: int = 2) -> float:
     run's network, Beta head, clipped loss, value loss, clip and Adam)."""
     import math
 
-    from hola_ray.env.layout import ObsLayout
-
     sys.path.insert(0, str(Path(__file__).parent))
     from update_step import bare_step
 
     o = config.oracle
-    step = bare_step(config, ObsLayout.from_config(config.env).dim)
+    step = bare_step(config, config.env.layout.dim)
     steps = max(1, math.ceil(rows * o.epochs / o.minibatch))
     step()  # warm-up
     start = time.perf_counter()

@@ -218,14 +218,13 @@ def main(argv: list[str] | None = None) -> dict:
 
     import torch
 
-    from hola_ray.env.layout import ObsLayout
     from hola_ray.oracle import Oracle
     from hola_ray.oracle.config import Seating
     from hola_ray.process import init_ray
     from hola_ray.run import read_config
 
     config = read_config(args.config, args.sets)
-    obs_dim = ObsLayout.from_config(config.env).dim
+    obs_dim = config.env.layout.dim
     flops = network_flops(config, obs_dim)
     init_ray("update_step", num_cpus=2)
     oracle = Oracle(config.env, config.oracle, Seating(), config.seed)

@@ -11,9 +11,10 @@ learner's scale (`hola_ray.evaluation.scale`): the same episodes played by a sea
 its heading (the floor) and by the committed ceilings (`pools/reference/`), and the
 learner's normalised score (learner − floor) / (ceiling − floor) with its interval.
 
-The scenario is the arena's default (Table I) with the learners' number of evaders (the
-paper's evaluation is 3 vs 2; every learner given must share it) and the arena's default
-rewards (the team return that the score compares; a run's own reward shaping is not used).
+The scenario is the one the learners trained in (`policies.registry.trained_scenario`:
+the paper's evaluation is 3 vs 2 in Table I's arena; every learner given must share it)
+with the arena's default rewards (the team return that the score compares; a run's own
+reward shaping is not used).
 Pool members trained for more evaders play fewer through `ScenarioAdapter`.
 
 A learner is a run directory (its final `learner.pt`), a generation folder or a policy
@@ -43,41 +44,29 @@ from hola_ray.evaluation.rollout import PolicyError
 from hola_ray.evaluation.scale import load_references
 from hola_ray.evaluation.zero_shot import evaluate
 from hola_ray.homes import RUNS
-from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
-from hola_ray.policies.learned import manifest_scenario
-from hola_ray.policies.registry import load_export, policy_file
+from hola_ray.policies.registry import played_scenario
 
 
-# ---- who plays ------------------------------------------------------------------------------
-def learner_evaders(path: Path, config: PursuitConfig) -> int | None:
-    """How many evaders a learner was trained against (its run's config, or the export's
-    input size): the evaluation plays that scenario. None for a D3QN-G export, which reads
-    the first evader only and plays any number."""
-    path = Path(path)
-    if not path.exists():
-        raise EvaluationError(f"{path}: no such file or directory")
-    if path.is_dir() and (path / "config.yaml").is_file():
-        import yaml
-
-        env = (yaml.safe_load((path / "config.yaml").read_text()) or {}).get("env") or {}
-        return int(env.get("n_evaders", config.n_evaders))
-    file = policy_file(path)
-    try:
-        export = load_export(path)
-    except ValueError as err:
-        raise EvaluationError(str(err)) from err
-    if export.get("format") == D3QN_FORMAT:
-        return None
-    if not isinstance(export.get("weights"), list | tuple) or not export["weights"]:
-        raise EvaluationError(f"{file}: not a policy export (no weights)")
-    scenario = export.get("scenario") or manifest_scenario(file)
-    if scenario:
-        return int(scenario.get("n_evaders", config.n_evaders))
-    inputs = export["weights"][0].shape[1] - len((export.get("features") or {}).get("indices", ()))
-    rest = 2 + 2 * (config.n_pursuers - 1) + 4  # obstacle, teammates, own
-    if (inputs - rest) % 3 or inputs <= rest:
-        raise EvaluationError(f"{file}: an input of {inputs} fits no number of evaders")
-    return (inputs - rest) // 3
+def learners_scenario(paths: list[Path]) -> PursuitConfig:
+    """The scenario the learners trained in, with the default reward (`played_scenario`);
+    D3QN-G learners play any: the others' scenario, else the paper's. Learners of different
+    scenarios are evaluated separately."""
+    scenarios: list[PursuitConfig] = []
+    for path in paths:
+        try:
+            scenario = played_scenario(path)
+        except ValueError as err:
+            raise EvaluationError(str(err)) from err
+        if scenario is not None and scenario not in scenarios:
+            scenarios.append(scenario)
+    if len(scenarios) > 1:
+        evaders = sorted({s.n_evaders for s in scenarios})
+        what = f"against different numbers of evaders ({evaders})" if len(evaders) > 1 else ""
+        raise EvaluationError(
+            f"the learners were trained in different scenarios {what}".rstrip()
+            + "; evaluate them separately"
+        )
+    return scenarios[0] if scenarios else PursuitConfig()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -95,14 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.episodes < 1 or args.cell_episodes < 1:
         return fail("--episodes and --cell-episodes must be at least 1")
     try:
-        evaders = {learner_evaders(p, PursuitConfig()) for p in args.learners} - {None}
-        if len(evaders) > 1:
-            raise EvaluationError(
-                f"the learners were trained against different numbers of evaders "
-                f"({sorted(evaders)}); evaluate them separately"
-            )
-        # D3QN-G learners play any number of evaders: the others' scenario, else the paper's
-        config = PursuitConfig(n_evaders=evaders.pop()) if evaders else PursuitConfig()
+        config = learners_scenario(args.learners)
         names = args.pool if args.pool else ([] if args.partner else list(EVALUATION_POOLS))
         members = pools(names, args.partner, config)
         loaded = [load_learner(p, config) for p in args.learners]

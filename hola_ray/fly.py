@@ -38,9 +38,10 @@ INSTALL = "pip install -e '.[deploy]'"
 def learner(spec: str, evaders: int | None) -> tuple[Any, PursuitConfig]:
     """The policy of seat 0 and the scenario it flies."""
     if spec.endswith(".onnx"):
-        from hola_ray.policies.deploy import OnnxPolicy, read_manifest
+        from hola_ray.policies.deploy import OnnxPolicy
+        from hola_ray.policies.registry import trained_scenario
 
-        config = PursuitConfig.from_dict(read_manifest(spec)["scenario"])
+        config = trained_scenario(spec)
         if evaders not in (None, config.n_evaders):
             raise ValueError(f"{spec} flies {config.n_evaders} evader(s), not {evaders}")
         return OnnxPolicy(spec), config

@@ -13,6 +13,7 @@ collision marks, a legend naming each seat's policy) and prints the episode's me
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from hola_ray.cli import OneLineParser, fail
@@ -92,18 +93,24 @@ def _names(args, config: PursuitConfig) -> list[str]:
     return names
 
 
+def _trained(name: str) -> PursuitConfig | None:
+    """The scenario a seat's learner trained in; None for a hand-written policy's name."""
+    try:
+        return trained_scenario(name)
+    except ValueError:
+        return None
+
+
 def _team(args) -> tuple[PursuitConfig, list[Policy]]:
     """The scenario and one policy per seat (a name given once fills every seat)."""
     config = PursuitConfig.from_yaml(args.config) if args.config else PursuitConfig()
     if args.evaders is None and args.config is None:
         # a learned seat's export says which scenario it was trained in: play that one
-        trained = next(filter(None, (trained_scenario(n) for n in args.team)), None)
+        trained = next(filter(None, (_trained(n) for n in args.team)), None)
         if trained is not None:
-            config = PursuitConfig.from_dict(
-                {**config.to_dict(), "n_evaders": trained["n_evaders"]}
-            )
+            config = trained
     if args.evaders is not None:
-        config = PursuitConfig.from_dict({**config.to_dict(), "n_evaders": args.evaders})
+        config = dataclasses.replace(config, n_evaders=args.evaders)
     return config, [resolve(name, config) for name in _names(args, config)]
 
 

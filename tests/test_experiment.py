@@ -4,6 +4,7 @@ method × seed × pool. Plus the config's checks and the aggregation, without Ra
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -17,7 +18,7 @@ import numpy as np
 import pytest
 import yaml
 
-from hola_ray.env.config import ConfigError
+from hola_ray.env.config import ConfigError, PursuitConfig
 from hola_ray.experiment import Experiment, aggregate, deep_merge, trial_state
 from hola_ray.methods.config import METHODS
 from hola_ray.population.rundir import metrics_differences
@@ -329,11 +330,33 @@ def test_a_pool_named_by_its_folder_is_the_same_pool():
     from hola_ray.experiment.tasks import _reference
 
     settings = {"cell_episodes": 1, "episodes": 2, "seeds": [0]}
-    by_folder = _reference(str(ROOT / "pools" / "hot"), settings, 2)
-    by_name = _reference("hot", settings, 2)
+    by_folder = _reference(str(ROOT / "pools" / "hot"), settings, PursuitConfig())
+    by_name = _reference("hot", settings, PursuitConfig())
     np.testing.assert_array_equal(by_folder["returns"], by_name["returns"])
     for seat, played in by_name["seats"].items():  # the learner's scale's reference seats
         np.testing.assert_array_equal(by_folder["seats"][seat]["success"], played["success"])
+
+
+def test_the_evaluation_plays_the_trials_scenario_with_one_reward():
+    """Trials are evaluated in the scenario they trained in (every env field, not only the
+    number of evaders), with the default reward whatever each trained with; trials of
+    different scenarios are refused."""
+    from types import SimpleNamespace
+
+    from hola_ray.env.config import RewardConfig
+    from hola_ray.experiment.runner import Runner
+
+    game = PursuitConfig(n_evaders=1, horizon=300, observe_headings=True)
+    own_move = dataclasses.replace(game, reward=RewardConfig(approach="own_move"))
+    trials = {"hola-s0": game, "sp-s0": own_move}
+    runner = SimpleNamespace(
+        exp=SimpleNamespace(trials=lambda: list(trials)),
+        configs={t: SimpleNamespace(env=env) for t, env in trials.items()},
+    )
+    assert Runner.evaluation_scenario(runner) == dataclasses.replace(game, reward=RewardConfig())
+    runner.configs["sp-s0"] = SimpleNamespace(env=dataclasses.replace(game, horizon=400))
+    with pytest.raises(RuntimeError, match="different scenarios"):
+        Runner.evaluation_scenario(runner)
 
 
 def test_a_watching_publisher_started_before_its_experiment_waits_for_it(tmp_path, capsys):

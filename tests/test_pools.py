@@ -205,7 +205,6 @@ def test_a_pool_file_by_its_path_plays_in_the_scenario_its_manifest_names(tmp_pa
     its manifest is still refused in one line."""
     import shutil
 
-    from hola_ray.evaluate import learner_evaders
     from hola_ray.evaluation.pools import POOLS_DIR
     from hola_ray.export import resolve
     from hola_ray.policies.registry import trained_scenario
@@ -216,10 +215,9 @@ def test_a_pool_file_by_its_path_plays_in_the_scenario_its_manifest_names(tmp_pa
     policy, source = resolve(str(hot))  # export and fly
     assert policy.config.n_evaders == 2 and source["file"] == str(hot)
     assert MLPPolicy.load(hot).config.n_evaders == 2
-    assert learner_evaders(hot, ONE) == 2  # evaluate
-    assert trained_scenario(hot)["n_evaders"] == 2  # replay
-    assert trained_scenario(member)["n_evaders"] == 1
-    assert trained_scenario(member)["reward"]["approach"] == "distance"
+    assert trained_scenario(hot).n_evaders == 2  # evaluate, replay
+    assert trained_scenario(member).n_evaders == 1
+    assert trained_scenario(member).reward.approach == "distance"
 
     stray = tmp_path / "ppo-1.pt"
     shutil.copyfile(hot, stray)

@@ -27,6 +27,33 @@ ROOT = Path(__file__).resolve().parent.parent
 SMOKE = ROOT / "configs" / "smoke.yaml"
 
 
+RECORDED = ROOT / "tests" / "data" / "smoke-metrics.json"
+"""the smoke run's metrics as an earlier build of the package wrote them (its `what`)"""
+
+COUNTS = ("env_steps", "pretrain_env_steps", "grapher_edges", "population_size", "monitored")
+"""fields set by the config and the budget alone, not by the learned policies' play"""
+
+
+def test_the_same_seed_gives_the_same_metrics_as_the_recorded_build(smoke_run):
+    """The smoke config's seed gives the metrics an earlier build recorded: every field,
+    wall times aside, to the last digit where torch computes as it did there (the same
+    build and CPU capability; elsewhere float rounding may differ and play diverges), and
+    the fields the config and budget set wherever it runs. Redesigns keep behaviour."""
+    recorded = json.loads(RECORDED.read_text())
+    assert smoke_run[1].returncode == 0, smoke_run[1].stderr[-3000:]
+    rows = RunDir(smoke_run[0]).metrics_rows()
+    assert len(rows) == len(recorded["rows"])
+    same_torch = (torch.__version__, torch.backends.cpu.get_cpu_capability()) == (
+        recorded["torch"],
+        recorded["cpu_capability"],
+    )
+    for got, then in zip(rows, recorded["rows"], strict=True):
+        fields = then if same_torch else {k: then[k] for k in COUNTS if k in then}
+        for field, value in fields.items():
+            now = got.get(field)
+            assert now == value or (now != now and value != value), (field, now, value)
+
+
 def test_smoke_run_writes_the_whole_run_directory(smoke_run, tmp_path):
     out, done = smoke_run
     assert done.returncode == 0, done.stderr[-3000:]

@@ -14,7 +14,6 @@ import numpy as np
 
 from hola_ray.env import _kernels, _rng
 from hola_ray.env.config import PursuitConfig
-from hola_ray.env.layout import ObsLayout
 
 INITIAL_STATE_KEYS = ("pursuer_pos", "pursuer_heading", "evader_pos", "evader_heading")
 """The keys an initial-state override may hold (any subset)."""
@@ -38,7 +37,7 @@ class BatchedPursuit:
         if not isinstance(batch_size, int | np.integer) or batch_size < 1:
             raise ValueError(f"batch_size must be an integer >= 1, got {batch_size!r}")
         self.config = config
-        self.layout = ObsLayout.from_config(config)
+        self.layout = config.layout
         self.batch_size = B = int(batch_size)
         n_p, n_e = config.n_pursuers, config.n_evaders
         self._params = _kernels.pack_params(config)

@@ -1,12 +1,13 @@
-"""Where each reading sits in a pursuer's observation vector (SPEC §1), derived from the config."""
+"""Where each reading sits in a pursuer's observation vector (SPEC §1): the one layout the
+simulator writes, `PursuitConfig.obs_dim` and the observation space read, the policies, the
+ONNX manifest and the scenario adapters slice by, and an export's input size is read back
+with (`evaders_for`). Built from a config as `PursuitConfig.layout`."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
-
-from hola_ray.env.config import PursuitConfig
 
 
 @dataclass(frozen=True)
@@ -30,10 +31,18 @@ class ObsLayout:
     """evaders in the scenario"""
     headings: bool = False
     """the other pursuers' headings follow the own block (`PursuitConfig.observe_headings`)"""
+    far: float = 1.0
+    """the largest normalised distance an observation holds (the arena's diagonal or the
+    unobserved distance, whichever is larger, over `obs_distance_scale`)"""
 
     @classmethod
-    def from_config(cls, config: PursuitConfig) -> ObsLayout:
-        return cls(config.n_pursuers, config.n_evaders, config.observe_headings)
+    def evaders_for(cls, inputs: int, n_pursuers: int, headings: bool = False) -> int | None:
+        """The number of evaders an observation of `inputs` entries holds with `n_pursuers`
+        pursuers; None when no number fits."""
+        rest = cls(n_pursuers, 0, headings).dim
+        if inputs <= rest or (inputs - rest) % 3:
+            return None
+        return (inputs - rest) // 3
 
     @property
     def evaders(self) -> int:
@@ -73,9 +82,9 @@ class ObsLayout:
         """Length of the observation."""
         return self.base_dim + (self.n_pursuers - 1 if self.headings else 0)
 
-    def bounds(self, config: PursuitConfig) -> tuple[np.ndarray, np.ndarray]:
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Elementwise (low, high) of the observation, for its `Box` space."""
-        far = max(config.unobserved_distance, _arena_diagonal(config) / config.obs_distance_scale)
+        far = self.far
         low = np.zeros(self.dim, dtype=np.float32)
         high = np.zeros(self.dim, dtype=np.float32)
         for e in range(self.n_evaders):
@@ -93,7 +102,3 @@ class ObsLayout:
         low[self.base_dim :] = -1.0
         high[self.base_dim :] = 1.0
         return low, high
-
-
-def _arena_diagonal(config: PursuitConfig) -> float:
-    return float(np.hypot(config.arena_width, config.arena_height))

@@ -44,7 +44,7 @@ class PursuitEnv(ParallelEnv):
         self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
         self._actions = np.full((1, self.config.n_pursuers), 0.5)
         self._seeded = False
-        self._obs_low, self._obs_high = self.core.layout.bounds(self.config)
+        self._obs_low, self._obs_high = self.core.layout.bounds()
 
     # ---- spaces ------------------------------------------------------------------------
     @functools.cache  # noqa: B019 - one space object per agent, as PettingZoo expects

@@ -3,24 +3,17 @@ of its own, evaluates the learners against the pools and writes the results."""
 
 from __future__ import annotations
 
-import csv
+import dataclasses
 import json
 import time
 from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from hola_ray.env.config import PursuitConfig, RewardConfig
 from hola_ray.experiment.config import Experiment, parse_trial
-from hola_ray.experiment.results import (
-    EVALUATION_FORMAT,
-    _atomic_json,
-    aggregate,
-    build_label,
-    builds_check,
-    builds_table,
-    results_table,
-    verdict_sentence,
-)
+from hola_ray.experiment.report import budget_spent, write_results
+from hola_ray.experiment.results import EVALUATION_FORMAT, _atomic_json, build_label
 from hola_ray.experiment.tasks import MARK, _evaluate_trial, _reference, _run_trial, trial_state
 
 # ---- trials on Ray --------------------------------------------------------------------------
@@ -180,8 +173,6 @@ class Runner:
     def train(self) -> None:
         import ray
 
-        from hola_ray.experiment.mirror import pack
-
         states = self.states()
         todo = [t for t, (s, _) in states.items() if s != "done"]
         for t, (s, last) in states.items():
@@ -199,69 +190,12 @@ class Runner:
             + f"; this cluster holds {self.fit_now()} side by side now"
         )
         self._check_fits(todo)
-        token, here = self.token(), ray.get_runtime_context().get_node_id()
-        running: dict[Any, str] = {}
-        groups: dict[str, Any] = {}
-        placing: dict[str, Any] = {}  # trial → its group's ready(), until the group is placed
-        started: dict[str, float] = {}
-        failed: dict[str, str] = {}
-        lost: dict[str, int] = dict.fromkeys(todo, 0)
-        waiting = list(todo)
-        last_view, last_line = 0.0, ""
+        flight = _Flight(self, remote, states, todo)
         try:
-            while waiting or running:
-                while waiting and len(running) < width:
-                    t = waiting.pop(0)
-                    groups[t], options = self.place(t)
-                    placing[t] = groups[t].ready()
-                    # a partial trial starts from the driver's copy wherever it lands
-                    partial = states[t][0] == "partial"
-                    ref = remote.options(**options).remote(
-                        self.configs[t].to_dict(),
-                        str(self.trial_dir(t).resolve()),
-                        token,
-                        here,
-                        pack(self.trial_dir(t)) if partial else None,
-                        self.mirror_of(t),
-                        self.donors(t),
-                    )
-                    running[ref] = t
-                    started[t] = time.monotonic()
-                ready, _ = ray.wait(list(running), num_returns=1, timeout=self.poll_s)
-                for ref in ready:
-                    t = running.pop(ref)
-                    try:
-                        how = ray.get(ref)
-                        took = time.monotonic() - started[t]
-                        self.say(f"{t}: done in {took / 60:.1f} min ({how})")
-                    except Exception as err:  # noqa: BLE001 - one failed trial must not stop the rest
-                        if node_lost(err) and lost[t] < self.max_lost:
-                            lost[t] += 1
-                            states[t] = trial_state(self.trial_dir(t), self.configs[t].generations)
-                            last = states[t][1]
-                            self.say(
-                                f"{t}: lost with its node ({type(err).__name__}); resubmitted "
-                                + (f"after generation {last}" if last is not None else "afresh")
-                                + f" ({lost[t]} of {self.max_lost})"
-                            )
-                            waiting.insert(0, t)
-                        else:
-                            why = str(err).strip().splitlines()[-1][:300]
-                            failed[t] = f"{type(err).__name__}: {why}"
-                            self.say(f"{t}: FAILED: {failed[t]}")
-                    ray.util.remove_placement_group(groups.pop(t))
-                    placing.pop(t, None)
-                for t, ref in list(placing.items()):
-                    if ray.wait([ref], timeout=0)[0]:
-                        del placing[t]
-                line = self.view(running.values(), waiting, failed, placing)
-                # say it when it changed, and at least once a minute
-                if line != last_line or time.monotonic() - last_view >= 60.0:
-                    self.say(f"[{time.strftime('%H:%M:%S')}] {line}")
-                    last_view, last_line = time.monotonic(), line
+            flight.fly(width)
         finally:
-            for group in groups.values():
-                ray.util.remove_placement_group(group)
+            flight.release()
+        failed = flight.failed
         if failed:
             raise RuntimeError(
                 f"{len(failed)} trial(s) failed: {', '.join(failed)}; fix and run "
@@ -324,6 +258,22 @@ class Runner:
         root = self.trial_dir(trial)
         return root / ("best.pt" if self.exp.evaluation.learner == "best" else "learner.pt")
 
+    def evaluation_scenario(self) -> PursuitConfig:
+        """The scenario every trial is evaluated in: the one they trained in, with the
+        default reward (one reward for every trial's returns, whatever each trained with).
+        Trials that trained in different scenarios cannot share one evaluation."""
+        games: list[PursuitConfig] = []
+        for t in self.exp.trials():
+            game = dataclasses.replace(self.configs[t].env, reward=RewardConfig())
+            if game not in games:
+                games.append(game)
+        if len(games) > 1:
+            raise RuntimeError(
+                "the trials train in different scenarios (besides the reward); "
+                "evaluate them in separate experiments"
+            )
+        return games[0]
+
     def evaluate(self) -> dict[str, dict[str, Any]]:
         import ray
 
@@ -331,7 +281,9 @@ class Runner:
         from hola_ray.evaluation.scale import reference_fingerprint
         from hola_ray.evaluation.zero_shot import normalised_line, pool_fingerprints
 
+        scenario = self.evaluation_scenario()
         settings = {
+            "scenario": scenario.to_dict(),
             "episodes": self.exp.evaluation.episodes,
             "seeds": list(self.exp.evaluation.seeds),
             "cell_episodes": self.exp.evaluation.cell_episodes,
@@ -352,22 +304,18 @@ class Runner:
             todo.append(t)
         if not todo:
             return {t: results[t] for t in self.exp.trials()}
-        scenarios = {self.configs[t].env.n_evaders for t in todo}
-        if len(scenarios) > 1:
-            raise RuntimeError(f"the trials play different numbers of evaders {scenarios}")
-        evaders = scenarios.pop()
         self.say(
             f"evaluating {len(todo)} learner(s) against {', '.join(settings['pools'])}: "
             "the pools' reference returns first"
         )
         start = time.monotonic()
         reference = ray.remote(num_cpus=1, max_retries=1)(_reference)
-        refs = {p: reference.remote(p, settings, evaders) for p in settings["pools"]}
+        refs = {p: reference.remote(p, settings, scenario) for p in settings["pools"]}
         references = ray.put({p: ray.get(r) for p, r in refs.items()})
         self.say(f"reference returns: {time.monotonic() - start:.0f} s")
         remote = ray.remote(num_cpus=1, max_retries=1)(_evaluate_trial)
         pending: dict[Any, str] = {
-            remote.remote(self.learner_file(t).read_bytes(), settings, evaders, references): t
+            remote.remote(self.learner_file(t).read_bytes(), settings, scenario, references): t
             for t in todo
         }
         while pending:
@@ -385,83 +333,13 @@ class Runner:
 
     # ---- phase 3: results -------------------------------------------------------------------
     def write_results(self, per_trial: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
-        from hola_ray.evaluation.compare import METRICS
-        from hola_ray.evaluation.report import plot
-
-        methods, differences = aggregate(per_trial, list(self.exp.methods), self.exp.pairs())
-        builds = builds_check(
-            {t: {p: r["success"] for p, r in pools_.items()} for t, pools_ in per_trial.items()},
-            self.exp.pairs(),
-            {
-                t: build_label(self.configs[t].pretrain.population, parse_trial(t)[1])
-                for t in per_trial
-            },
-        )
-        trials = {
-            t: {
-                "method": parse_trial(t)[0],
-                "seed": parse_trial(t)[1],
-                **self.budget_spent(t),
-                "pools": {
-                    p: {k: r[k] for k in METRICS}
-                    | {f"{k}_se": r[f"{k}_se"] for k in METRICS}
-                    | {"score": r["score_iqm"]}
-                    | (
-                        {"scale": {k: v for k, v in r["scale"].items() if k != "per_episode"}}
-                        if "scale" in r
-                        else {}
-                    )
-                    for p, r in pools_.items()
-                },
-            }
-            for t, pools_ in per_trial.items()
+        """results.json, results.md and figure.png of the evaluated trials (`report`)."""
+        spent = {t: budget_spent(self.trial_dir(t)) for t in per_trial}
+        builds = {
+            t: build_label(self.configs[t].pretrain.population, parse_trial(t)[1])
+            for t in per_trial
         }
-        results = {
-            "experiment": str(self.exp.source) if self.exp.source else None,
-            "base": self.exp.base,
-            "seeds": list(self.exp.seeds),
-            "evaluation": {
-                "episodes_per_seed": self.exp.evaluation.episodes,
-                "seeds": list(self.exp.evaluation.seeds),
-                "learner": self.exp.evaluation.learner,
-            },
-            "trials": trials,
-            "methods": methods,
-            "differences": differences,
-            "builds": builds,
-            "verdict": verdict_sentence(differences, self.exp.pairs()[0][0])
-            if self.exp.pairs()
-            else {},
-            "intervals": "95 %, stratified bootstrap: training seeds within each method, "
-            "one resample shared by methods with the same seeds (paired by seed), episodes "
-            "within each partner combination, shared by every trial (paired)",
-        }
-        _atomic_json(self.out / "results.json", results)
-        figure_input = {
-            m: {p: {**r, "score_iqm": r["score"]} for p, r in pools_.items()}
-            for m, pools_ in methods.items()
-        }
-        png, _ = plot(figure_input, self.out)
-        png.replace(self.out / "figure.png")
-        (self.out / "evaluation.md").unlink(missing_ok=True)
-        from hola_ray.population.rundir import PHI_TIE
-
-        same = sorted(t for t, x in trials.items() if x.get("phi_tv_max", 1.0) <= PHI_TIE)
-        note = (
-            f"\nφ never departed from the rival rule's by more than {PHI_TIE} (total "
-            f"variation, every generation) in: {', '.join(same)}; there the two rules drew "
-            "partners alike.\n"
-            if same
-            else ""
-        )
-        said = results["verdict"].get("sentence")
-        (self.out / "results.md").write_text(
-            (f"**Verdict** (the rule fixed before the runs): {said}\n\n" if said else "")
-            + results_table(figure_input, differences, len(self.exp.seeds))
-            + builds_table(builds)
-            + note
-        )
-        return results
+        return write_results(self.exp, self.out, per_trial, spent, builds)
 
     def donors(self, trial: str) -> list[str]:
         """The other trials whose generation 0 this trial may take: the same
@@ -475,47 +353,6 @@ class Runner:
             if t != trial and c.generation_zero_key() == key
         ]
 
-    def budget_spent(self, trial: str) -> dict[str, Any]:
-        """What a trial's training took: env steps, the learner's own transitions and
-        gradient steps (cumulative, at its last generation), pre-training env steps, the
-        wall time of all its generations (`train_s`, generation 0's population build
-        included) and of the learner's own (`learner_train_s`: generations 1 on), and for
-        a method with a rival rule the largest distance between its φ and the rival's
-        (`phi_tv_max`)."""
-        from hola_ray.experiment.tasks import RESTORED
-        from hola_ray.population.rundir import RunDir, phi_departure
-
-        root = self.trial_dir(trial)
-        if (root / RESTORED).is_file():  # restored from its published files: no generations
-            with (root / "metrics.csv").open() as f:
-                rows = list(csv.DictReader(f))
-        else:
-            rows = RunDir(root).metrics_rows()
-        if not rows:
-            return {}
-        last = rows[-1]
-
-        def number(row, key):
-            value = row.get(key, "")
-            return float(value) if value not in ("", None) else 0.0
-
-        departed = phi_departure(rows)
-        # generation 0 (a population's build or adoption) has a row only where there is one
-        zero = rows[0] if int(number(rows[0], "generation")) == 0 else None
-        return {
-            **({} if departed is None else {"phi_tv_max": round(departed, 6)}),
-            "env_steps": int(number(last, "env_steps")),
-            "learner_samples": int(number(last, "learner_samples")),
-            "gradient_steps": int(number(last, "gradient_steps")),
-            "pretrain_env_steps": int(number(rows[0], "pretrain_env_steps")),
-            "train_s": round(float(last["cumulative_wall_s"]), 1),
-            "learner_train_s": round(
-                float(last["cumulative_wall_s"])
-                - (float(zero["cumulative_wall_s"]) if zero else 0.0),
-                1,
-            ),
-        }
-
     def run(self) -> dict[str, Any]:
         self.train()
         if self.exp.evaluation is None:
@@ -528,3 +365,97 @@ class Runner:
         results = self.write_results(per_trial)
         self.say(f"wrote {self.out / 'results.json'}, results.md and figure.png")
         return results
+
+
+class _Flight:
+    """The trials of one `Runner.train` in the air: which are waiting, placing and
+    running, which failed, and how often each was lost with its node."""
+
+    def __init__(self, runner: Runner, remote: Any, states: dict, todo: list[str]) -> None:
+        import ray
+
+        self.runner, self.remote, self.states = runner, remote, states
+        self.token, self.here = runner.token(), ray.get_runtime_context().get_node_id()
+        self.running: dict[Any, str] = {}
+        self.groups: dict[str, Any] = {}
+        self.placing: dict[str, Any] = {}  # trial → its group's ready(), until it is placed
+        self.started: dict[str, float] = {}
+        self.failed: dict[str, str] = {}
+        self.lost: dict[str, int] = dict.fromkeys(todo, 0)
+        self.waiting = list(todo)
+
+    def fly(self, width: int) -> None:
+        """Until every trial finished or failed: `width` at a time, a progress line when
+        it changed (and at least once a minute)."""
+        import ray
+
+        r = self.runner
+        last_view, last_line = 0.0, ""
+        while self.waiting or self.running:
+            while self.waiting and len(self.running) < width:
+                self.submit(self.waiting.pop(0))
+            ready, _ = ray.wait(list(self.running), num_returns=1, timeout=r.poll_s)
+            for ref in ready:
+                self.land(ref)
+            for t, ref in list(self.placing.items()):
+                if ray.wait([ref], timeout=0)[0]:
+                    del self.placing[t]
+            line = r.view(self.running.values(), self.waiting, self.failed, self.placing)
+            if line != last_line or time.monotonic() - last_view >= 60.0:
+                r.say(f"[{time.strftime('%H:%M:%S')}] {line}")
+                last_view, last_line = time.monotonic(), line
+
+    def submit(self, t: str) -> None:
+        """Start trial `t` in a placement group of its own."""
+        from hola_ray.experiment.mirror import pack
+
+        r = self.runner
+        self.groups[t], options = r.place(t)
+        self.placing[t] = self.groups[t].ready()
+        # a partial trial starts from the driver's copy wherever it lands
+        partial = self.states[t][0] == "partial"
+        ref = self.remote.options(**options).remote(
+            r.configs[t],
+            str(r.trial_dir(t).resolve()),
+            self.token,
+            self.here,
+            pack(r.trial_dir(t)) if partial else None,
+            r.mirror_of(t),
+            r.donors(t),
+        )
+        self.running[ref] = t
+        self.started[t] = time.monotonic()
+
+    def land(self, ref: Any) -> None:
+        """A trial that ended: done, resubmitted when its node was lost (up to
+        `Runner.max_lost` times), or failed."""
+        import ray
+
+        r, t = self.runner, self.running.pop(ref)
+        try:
+            how = ray.get(ref)
+            r.say(f"{t}: done in {(time.monotonic() - self.started[t]) / 60:.1f} min ({how})")
+        except Exception as err:  # noqa: BLE001 - one failed trial must not stop the rest
+            if node_lost(err) and self.lost[t] < r.max_lost:
+                self.lost[t] += 1
+                self.states[t] = trial_state(r.trial_dir(t), r.configs[t].generations)
+                last = self.states[t][1]
+                r.say(
+                    f"{t}: lost with its node ({type(err).__name__}); resubmitted "
+                    + (f"after generation {last}" if last is not None else "afresh")
+                    + f" ({self.lost[t]} of {r.max_lost})"
+                )
+                self.waiting.insert(0, t)
+            else:
+                why = str(err).strip().splitlines()[-1][:300]
+                self.failed[t] = f"{type(err).__name__}: {why}"
+                r.say(f"{t}: FAILED: {self.failed[t]}")
+        ray.util.remove_placement_group(self.groups.pop(t))
+        self.placing.pop(t, None)
+
+    def release(self) -> None:
+        """Remove the placement groups still held (the run stopped or failed)."""
+        import ray
+
+        for group in self.groups.values():
+            ray.util.remove_placement_group(group)

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from hola_ray.env.config import PursuitConfig
 from hola_ray.methods.config import RunConfig
 from hola_ray.process import pin_threads
 
@@ -46,7 +47,7 @@ def sees(run_dir: Path, token: str | None) -> bool:
 
 
 def _run_trial(
-    config: dict[str, Any],
+    config: RunConfig,
     run_dir: str,
     token: str | None = None,
     driver_node: str | None = None,
@@ -74,7 +75,7 @@ def _run_trial(
     # Not `pin_threads`: the learner's torch threads set how its gradients are summed, and
     # a trial must train as `python -m hola_ray.run` of its config does (a test compares
     # them); pinned to its one CPU it read returns 1e-8 apart.
-    root, run_config = Path(run_dir), RunConfig.from_dict(config)
+    root, run_config = Path(run_dir), config
     tags = {"run": root.parent.parent.name, "trial": root.name}  # DIR/trials/<trial>
     if mirror is None:
         mirror = not sees(root, token)
@@ -101,16 +102,14 @@ def _run_trial(
     return "mirrored to the driver's node"
 
 
-def _reference(pool: str, settings: dict[str, Any], n_evaders: int) -> dict[str, Any]:
+def _reference(pool: str, settings: dict[str, Any], config: PursuitConfig) -> dict[str, Any]:
     """A pool's reference returns for the BR-Prox score and the learner's scale's reference
     seats on the evaluation's episodes: computed once, for every trial."""
     pin_threads(1)  # its one CPU: two such tasks side by side otherwise spin each other
-    from hola_ray.env.config import PursuitConfig
     from hola_ray.evaluation.players import pool_label, pools
     from hola_ray.evaluation.scale import load_references, play_references
     from hola_ray.evaluation.zero_shot import cell_returns
 
-    config = PursuitConfig(n_evaders=n_evaders)
     members = list(pools([pool], [], config)[pool_label(pool)].values())
     seeds = settings["seeds"]
     return {
@@ -122,18 +121,16 @@ def _reference(pool: str, settings: dict[str, Any], n_evaders: int) -> dict[str,
 
 
 def _evaluate_trial(
-    learner: bytes, settings: dict[str, Any], n_evaders: int, references: dict[str, dict]
+    learner: bytes, settings: dict[str, Any], config: PursuitConfig, references: dict[str, dict]
 ) -> dict[str, Any]:
     """A learner (its file's bytes, read by the driver: any node can evaluate it) against
     the pools."""
     pin_threads(1)  # its one CPU (see `_reference`)
     import tempfile
 
-    from hola_ray.env.config import PursuitConfig
     from hola_ray.evaluation.players import load_learner, pool_label, pools
     from hola_ray.evaluation.zero_shot import evaluate_learner
 
-    config = PursuitConfig(n_evaders=n_evaders)
     members = pools(list(settings["pools"]), [], config)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "learner.pt"

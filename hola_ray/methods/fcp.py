@@ -9,13 +9,14 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 from hola_ray.env.checks import positive_int, require
-from hola_ray.methods.base import Built, Method, Origin, summed
+from hola_ray.methods.base import Method, Origin
+from hola_ray.methods.context import Context
+from hola_ray.methods.pretrain import Built, summed
 from hola_ray.oracle.config import Seating
 from hola_ray.oracle.mapping import LEARNER
 
 if TYPE_CHECKING:
     from hola_ray.methods.config import RunConfig
-    from hola_ray.methods.trainer import Trainer
 
 
 @dataclass(frozen=True)
@@ -56,10 +57,10 @@ class FCP(Method):
             config.fcp.agents,
         )
 
-    def build_population(self, trainer: Trainer) -> Built:
+    def build_population(self, ctx: Context) -> Built:
         from hola_ray.oracle.trainer import Oracle
 
-        c = trainer.config
+        c = ctx.config
         # FCP's partners, like MEP's, are built in environment steps (`fcp.env_steps`)
         oracle_config = dataclasses.replace(c.oracle, budget="env_steps")
         states = []
@@ -73,7 +74,7 @@ class FCP(Method):
                     stats = oracle.train(
                         budget,
                         desc=f"pre-train (FCP agent {i}, to {part})",
-                        progress=trainer.progress,
+                        progress=ctx.progress,
                     )
                     parts.append(stats)
                     states.append(oracle.weights([LEARNER])[LEARNER])

@@ -13,15 +13,16 @@ from typing import TYPE_CHECKING, ClassVar
 import ray
 
 from hola_ray.env.checks import finite_in, require
-from hola_ray.methods.base import Built, Method, Origin, pretrain_population
+from hola_ray.methods.base import Method, Origin
 from hola_ray.methods.config import PRETRAIN_SCHEMES
+from hola_ray.methods.context import Context
+from hola_ray.methods.pretrain import Built, pretrain_population
 from hola_ray.oracle.mapping import LEARNER
 from hola_ray.population.rules import ExploitExplore
 from hola_ray.population.state import Decision
 
 if TYPE_CHECKING:
     from hola_ray.methods.config import RunConfig
-    from hola_ray.methods.trainer import Trainer
     from hola_ray.oracle.trainer import Oracle
 
 
@@ -79,8 +80,8 @@ class PBT(Method):
         o = config.oracle
         return ExploitExplore(config.pbt.quantile, config.pbt.perturb, o.lr, o.entropy_coef)
 
-    def build_population(self, trainer: Trainer) -> Built:
-        c = trainer.config
+    def build_population(self, ctx: Context) -> Built:
+        c = ctx.config
         n = c.population.initial_size
         if c.pretrain.start_agent != "none":  # the common start: its agents are copies of it
             from hola_ray.methods.generation_zero import start_agent
@@ -96,20 +97,20 @@ class PBT(Method):
         else:
             mixed = c.pbt.start == "mixed"
             how = "jointly (PBT's start)" if mixed else "each in self-play (PBT's start)"
-            return pretrain_population(trainer, 0.0, how, c.pbt.start)
-        from hola_ray.oracle.trainer import TrainStats
+            return pretrain_population(ctx, 0.0, how, c.pbt.start)
+        from hola_ray.oracle.stats import TrainStats
 
         return Built([state] * n, TrainStats.untrained(), f"{n} agents, each a copy of {named}")
 
-    def before_training(self, trainer: Trainer, g: int, oracle: Oracle) -> int:
+    def before_training(self, ctx: Context, g: int, oracle: Oracle) -> int:
         """Generation g trains agent (g − 1) mod K: its weights go into the learner, which
         trains with that agent's lr and entropy coefficient and a fresh optimizer."""
-        slots = ray.get(trainer.coord.slots.remote())
+        slots = ray.get(ctx.coord.slots.remote())
         slot = (g - 1) % len(slots)
         node = next(v for v, s in slots.items() if s == slot)
-        state = trainer.member_states([node])[node]
+        state = ctx.member_states([node])[node]
         oracle.set_trained_weights({LEARNER: state})
-        hyper = ray.get(trainer.coord.agent_hyper.remote(slot))
+        hyper = ray.get(ctx.coord.agent_hyper.remote(slot))
         oracle.reset_learner(hyper["lr"], hyper["entropy_coef"])
         return slot
 

@@ -24,6 +24,7 @@ from hola_ray import interrupt
 from hola_ray.clock import PhaseClock
 from hola_ray.methods import generation_zero
 from hola_ray.methods.config import RunConfig
+from hola_ray.methods.context import Context
 from hola_ray.methods.generation_zero import KEY_FILE, GenerationZero
 from hola_ray.methods.monitors import Monitoring, monitored, validation_teammates
 from hola_ray.oracle import LEARNER, Oracle
@@ -69,7 +70,7 @@ class Trainer:
         self.run = RunDir(self.run_dir)
         self.name = run_id(str(self.run.root))
         c = self.config
-        self.pool = EvaluatorPool(c.env.to_dict(), c.grapher.workers, run_name=self.name)
+        self.pool = EvaluatorPool(c.env, c.grapher.workers, run_name=self.name)
         self.monitoring = Monitoring(c, self.pool if c.grapher.workers else None)
         self.clock = PhaseClock(self.started)
         """the time of the metrics row in progress, by phase"""
@@ -104,17 +105,7 @@ class Trainer:
         self.run.create(c.to_yaml())
         with clock.phase("population"):
             generation_zero.take(zero, self.run, self.say)
-        settings = CoordinatorSettings(
-            rules=method.rules(c),
-            population=c.population,
-            l=c.l,
-            seed=c.seed,
-            edges_per_learner=c.grapher.edges_per_learner,
-            method=c.method,
-            rival=method.rival(c),
-            tags=self.tags or {},
-        )
-        self.coord = start_coordinator(self.run.root, settings)
+        self._start_coordinator()
         with clock.phase("actors"):
             self.pool.start()  # they start while this driver goes on
         written: list[int] = []
@@ -150,16 +141,7 @@ class Trainer:
                     with clock.phase("oracle_build"):
                         oracle = method.make_oracle(c)
                 with clock.phase("seat"):
-                    learner = self.run.load_learner_state(last)
-                    if learner is None and last == 0:
-                        start = generation_zero.starting_member(zero, c, self.coord, self.say)
-                        if start is not None:
-                            self.start_node, learner = start
-                    if learner is not None:
-                        oracle.set_trained_weights({LEARNER: learner})
-                    training = self.run.load_training_state(last) if last >= 1 else None
-                    if training is not None:  # Adam's moments and the schedules go on
-                        oracle.set_training_state(training)
+                    self._seat_learner(oracle, last)
                 for g in range(last + 1, self.config.generations + 1):
                     self._generation(g, oracle)
                     written.append(g)
@@ -180,6 +162,34 @@ class Trainer:
             ray.kill(self.coord)
         return [self.run.metrics(g) for g in written]
 
+    def _start_coordinator(self) -> None:
+        c, method = self.config, self.config.strategy
+        settings = CoordinatorSettings(
+            rules=method.rules(c),
+            population=c.population,
+            l=c.l,
+            seed=c.seed,
+            edges_per_learner=c.grapher.edges_per_learner,
+            method=c.method,
+            rival=method.rival(c),
+            tags=self.tags or {},
+        )
+        self.coord = start_coordinator(self.run.root, settings)
+
+    def _seat_learner(self, oracle: Oracle, last: int) -> None:
+        """The learner's weights after generation `last` (its start before generation 1:
+        `pretrain.learner_start`), and its optimizer's and schedules' state where saved."""
+        learner = self.run.load_learner_state(last)
+        if learner is None and last == 0:
+            start = generation_zero.starting_member(self.zero, self.config, self.coord, self.say)
+            if start is not None:
+                self.start_node, learner = start
+        if learner is not None:
+            oracle.set_trained_weights({LEARNER: learner})
+        training = self.run.load_training_state(last) if last >= 1 else None
+        if training is not None:  # Adam's moments and the schedules go on
+            oracle.set_training_state(training)
+
     # ---- generation 0 -------------------------------------------------------------------
     def _pretrain(self) -> dict[str, Any]:
         c, clock = self.config, self.clock
@@ -187,7 +197,7 @@ class Trainer:
         start = time.perf_counter()
         # a shipped population's members (weighed again here), or pre-training
         with clock.phase("population" if self.zero.source == "reweigh" else "pretrain"):
-            built = c.strategy.generation_zero(self)
+            built = c.strategy.generation_zero(self.context())
             states_list, stats = built.states, built.stats
             exports = [c.export(s) for s in states_list]
         pretrain_s = time.perf_counter() - start
@@ -231,7 +241,7 @@ class Trainer:
         self.coord.set_phase.remote("oracle")
         start = time.perf_counter()
         with clock.phase("seat"):
-            slot = method.before_training(self, g, oracle)
+            slot = method.before_training(self.context(), g, oracle)
             if not method.self_play:
                 oracle.seat(
                     ray.get(self.coord.plan.remote(slot)),
@@ -374,7 +384,7 @@ class Trainer:
             return weigh(
                 edges,
                 exports,
-                c.env.to_dict(),
+                c.env,
                 self.pool if c.grapher.workers else None,
                 c.grapher.episodes_per_edge,
                 lambda edge: edge_seed(c.seed, g, edge),
@@ -387,6 +397,18 @@ class Trainer:
         interrupt.check()
         if self.saved is not None:
             self.saved(g)
+
+    def context(self) -> Context:
+        """What a method's hooks may use of this run."""
+        return Context(
+            config=self.config,
+            run=self.run,
+            zero=self.zero,
+            say=self.say,
+            progress=self.progress,
+            coord=getattr(self, "coord", None),
+            member_states=self.member_states,
+        )
 
     def say(self, text: str) -> None:
         """One line of the run's log (a method's generation 0 says what it built here)."""

@@ -1,18 +1,19 @@
 """The Oracle: RLlib multi-agent PPO whose partner mapping follows φ (SPEC §5). Building
 one applies `hola_ray.rllib_fixes` in the driver and in each of its env runners.
 
-`Oracle` and `TrainStats` are imported from `trainer` on first use, so that reading a run
+`Oracle` is imported from `trainer` on first use, so that reading a run
 config (`hola_ray.oracle.config`) does not import RLlib: a command validates its config
 first, then imports RLlib while Ray starts (`hola_ray.run`)."""
 
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
+from hola_ray.oracle.stats import TrainStats
 
 __all__ = ["LEARNER", "Oracle", "PartnerMapping", "TrainStats", "member_module"]
 
 
 def __getattr__(name: str):
-    """`Oracle` and `TrainStats`, from `hola_ray.oracle.trainer` on first use."""
-    if name in ("Oracle", "TrainStats"):
+    """`Oracle`, from `hola_ray.oracle.trainer` on first use."""
+    if name == "Oracle":
         from hola_ray.oracle import trainer
 
         return getattr(trainer, name)

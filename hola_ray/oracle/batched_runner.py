@@ -54,7 +54,6 @@ from ray.rllib.utils.metrics import (
 )
 
 from hola_ray import rllib_fixes
-from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitPPOModule
 from hola_ray.policies.learned import MLPPolicy, MLPStack, export_from_rllib
@@ -95,7 +94,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             pin_threads(self.config.num_cpus_per_env_runner)
         if self.env is None:  # the local runner beside remote ones holds no env
             return
-        self._pursuit = PursuitConfig.from_dict(dict(self.config.env_config))
+        self._pursuit = self.config.env_config["scenario"]
         self.agents = [f"pursuer_{i}" for i in range(self._pursuit.n_pursuers)]
         self.core = BatchedPursuit(self._pursuit, self.num_envs)
         seed = self.config.seed

@@ -9,7 +9,6 @@ from typing import Any
 
 from hola_ray.env.checks import finite_in, positive_int, require, widths
 from hola_ray.env.config import PursuitConfig
-from hola_ray.env.layout import ObsLayout
 from hola_ray.policies.learned import DISTRIBUTIONS, export_from_rllib
 from hola_ray.provenance import commit_id
 
@@ -173,7 +172,7 @@ class OracleConfig:
         if self.proximity_length == 0:
             return None
         return {
-            "indices": ObsLayout.from_config(env).proximity,
+            "indices": env.layout.proximity,
             "gain": env.obs_distance_scale / self.proximity_length,
         }
 

@@ -40,6 +40,7 @@ from hola_ray.oracle.learner import OracleLearner
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitCatalog, PursuitPPOModule
 from hola_ray.oracle.overlap import OverlappedPPO
+from hola_ray.oracle.stats import TrainStats
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.progress import progress as progress_bar
 
@@ -49,7 +50,7 @@ ModuleState = Mapping[str, Any]
 
 
 def _make_env(env_config: Mapping[str, Any]) -> ParallelPettingZooEnv:
-    return ParallelPettingZooEnv(PursuitEnv(PursuitConfig.from_dict(env_config)))
+    return ParallelPettingZooEnv(PursuitEnv(env_config["scenario"]))
 
 
 class _RepushOnRecreate(RLlibCallback):
@@ -95,62 +96,6 @@ class _Pushed:
 
 _PUSHED: weakref.WeakValueDictionary[int, _Pushed] = weakref.WeakValueDictionary()
 """id(algorithm) → what its Oracle last pushed (held by the Oracle; gone with it)"""
-
-
-@dataclass(frozen=True)
-class TrainStats:
-    """What one `Oracle.train` call did."""
-
-    env_steps: int
-    """environment steps sampled in this call"""
-    iterations: int
-    """PPO updates"""
-    wall_s: float
-    """seconds spent in `algo.train()`"""
-    sample_s: float
-    """of which sampling: everything but the learner update (weight sync included)"""
-    learn_s: float
-    """of which the learner update (GAE pipeline and SGD), timed in `OracleLearner`"""
-    episode_return: float
-    """mean summed team return of the last iteration's episodes (NaN if none ended)"""
-    module_return: dict[str, float]
-    """mean return per module over the last iteration's episodes"""
-    learner_samples: int = 0
-    """transitions of the trained module(s) the learner consumed in this call (every seat
-    a trained module played, every step it acted)"""
-    gradient_steps: int = 0
-    """minibatch gradient steps applied to the trained module(s) in this call"""
-    iteration_log: tuple[dict[str, float], ...] = ()
-    """one row per PPO iteration: env steps so far, return, the trained policies' spread
-    (`MLPPolicy.spread` on reference observations, the widest trained module), entropy,
-    value loss and explained variance (KL when the KL penalty is on)"""
-
-    @classmethod
-    def untrained(cls) -> TrainStats:
-        """No training: a generation 0 made of copies, or a build resumed after its end."""
-        return cls(0, 0, 0.0, 0.0, 0.0, float("nan"), {})
-
-    @property
-    def spread(self) -> dict[str, float]:
-        """The last iteration's spread and the widest of the call: std_median, clipped,
-        std_median_max, clipped_max."""
-        if not self.iteration_log:
-            return {}
-        last = self.iteration_log[-1]
-        return {
-            "std_median": last["std_median"],
-            "clipped": last["clipped"],
-            "std_median_max": max(r["std_median"] for r in self.iteration_log),
-            "clipped_max": max(r["clipped"] for r in self.iteration_log),
-        }
-
-    @property
-    def env_steps_per_s(self) -> float:
-        return self.env_steps / max(self.wall_s, 1e-9)
-
-    @property
-    def sampled_steps_per_s(self) -> float:
-        return self.env_steps / max(self.sample_s, 1e-9)
 
 
 class Oracle:
@@ -240,7 +185,7 @@ class Oracle:
             extra |= {"mep_alpha": self.seating.mep_alpha, "mep_modules": self.members}
         return (
             PPOConfig(algo_class=OverlappedPPO)
-            .environment(ENV_NAME, env_config=env.to_dict())
+            .environment(ENV_NAME, env_config={"scenario": env})
             .env_runners(
                 env_runner_cls=BatchedEnvRunner if o.sampler == "batched" else None,
                 num_env_runners=o.env_runners,

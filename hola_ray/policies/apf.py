@@ -30,7 +30,6 @@ from numba import njit
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.geometry import norm
-from hola_ray.env.layout import ObsLayout
 from hola_ray.policies import _ego
 from hola_ray.policies.base import Policy
 
@@ -95,7 +94,7 @@ def apf_actions(
     target: np.ndarray,
 ) -> np.ndarray:
     """APF-A actions for rows with their own λ [N], η [N] and target evader [N] (−1: nearest)."""
-    lay = ObsLayout.from_config(config)
+    lay = config.layout
     return _apf(
         obs,
         lam,

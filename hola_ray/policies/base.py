@@ -16,7 +16,6 @@ from typing import Any
 import numpy as np
 
 from hola_ray.env.config import PursuitConfig
-from hola_ray.env.layout import ObsLayout
 
 
 class Policy(ABC):
@@ -26,7 +25,7 @@ class Policy(ABC):
 
     def __init__(self, config: PursuitConfig) -> None:
         self.config = config
-        self.layout = ObsLayout.from_config(config)
+        self.layout = config.layout
 
     @abstractmethod
     def act(self, obs: np.ndarray) -> np.ndarray:

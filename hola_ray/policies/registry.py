@@ -6,6 +6,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from hola_ray.env.config import PursuitConfig
+from hola_ray.env.layout import ObsLayout
 from hola_ray.homes import GENERATION_EXPORT, GENERATION_STATE
 from hola_ray.policies.apf import APFA
 from hola_ray.policies.base import Policy
@@ -70,16 +71,54 @@ def load_export(path: str | Path) -> dict:
     return export
 
 
-def trained_scenario(path: str | Path) -> dict | None:
-    """The scenario a run directory's learner or an export file was trained in, when its
-    export or its manifest says (`PursuitConfig.to_dict()`); None for a name or an older
-    export that no manifest lists."""
+def trained_scenario(path: str | Path) -> PursuitConfig | None:
+    """The scenario a learner was trained in: the one answer `evaluate`, `replay`, `fly`
+    and the experiment's evaluation ask for. From, first to last: a run directory's
+    config.yaml, an ONNX file's manifest, the export's own record, the pool or population
+    manifest beside the file, and, for an older export no manifest lists, the paper's
+    arena with as many evaders as its input size holds. None for a D3QN-G export, which
+    reads the first evader only and plays any scenario. A path that is no learner raises
+    `ValueError` in one line."""
+    import yaml
+
+    from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
     from hola_ray.policies.learned import manifest_scenario
 
-    try:
-        return load_export(path).get("scenario") or manifest_scenario(policy_file(path))
-    except ValueError:
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"{path}: no such file or directory")
+    if path.is_dir() and (path / "config.yaml").is_file():
+        run = yaml.safe_load((path / "config.yaml").read_text()) or {}
+        return PursuitConfig.from_dict(run.get("env") or {})
+    if path.suffix == ".onnx":
+        from hola_ray.policies.deploy import read_manifest
+
+        return PursuitConfig.from_dict(read_manifest(path)["scenario"])
+    export = load_export(path)
+    if export.get("format") == D3QN_FORMAT:
         return None
+    file = policy_file(path)
+    if not isinstance(export.get("weights"), list | tuple) or not export["weights"]:
+        raise ValueError(f"{file}: not a policy export (no weights)")
+    scenario = export.get("scenario") or manifest_scenario(file)
+    if scenario:
+        return PursuitConfig.from_dict(scenario)
+    inputs = export["weights"][0].shape[1] - len((export.get("features") or {}).get("indices", ()))
+    evaders = ObsLayout.evaders_for(inputs, PursuitConfig().n_pursuers)
+    if evaders is None:
+        raise ValueError(f"{file}: an input of {inputs} fits no number of evaders")
+    return PursuitConfig(n_evaders=evaders)
+
+
+def played_scenario(path: str | Path) -> PursuitConfig | None:
+    """The scenario a learner is evaluated in: the one it trained in (`trained_scenario`)
+    with the default reward, so that every learner's returns are counted alike."""
+    import dataclasses
+
+    from hola_ray.env.config import RewardConfig
+
+    trained = trained_scenario(path)
+    return None if trained is None else dataclasses.replace(trained, reward=RewardConfig())
 
 
 def load_policy(path: str | Path, config: PursuitConfig, name: str | None = None) -> Policy:

@@ -18,12 +18,13 @@ from typing import Any
 import numpy as np
 import ray
 
+from hola_ray.env.config import PursuitConfig
 from hola_ray.population.state import EdgeResult
 from hola_ray.process import pin_threads
 
 
 def evaluate_team(
-    env_config: Mapping[str, Any],
+    config: PursuitConfig,
     team: Sequence[int],
     exports: Mapping[int, Mapping[str, Any]],
     episodes: int,
@@ -31,12 +32,12 @@ def evaluate_team(
 ) -> EdgeResult:
     """One hyperedge's weight: `episodes` episodes of the l policies of `team` (a chunk of
     one hyperedge, `evaluate_teams`)."""
-    (result,) = evaluate_teams(env_config, [tuple(team)], exports, episodes, [seed])
+    (result,) = evaluate_teams(config, [tuple(team)], exports, episodes, [seed])
     return result
 
 
 def evaluate_teams(
-    env_config: Mapping[str, Any],
+    config: PursuitConfig,
     teams: Sequence[Sequence[int]],
     exports: Mapping[int, Mapping[str, Any]],
     episodes: int,
@@ -50,13 +51,11 @@ def evaluate_teams(
     the same whichever others share its rollout; its figures are the same to within the
     float rounding of the stacked forward pass.
     """
-    from hola_ray.env.config import PursuitConfig
     from hola_ray.evaluation.metrics import team_figures
     from hola_ray.evaluation.rollout import rollout
     from hola_ray.evaluation.stats import episode_seeds
     from hola_ray.policies.learned import MLPPolicy
 
-    config = PursuitConfig.from_dict(env_config)
     for team in teams:
         if len(team) != config.n_pursuers:
             raise ValueError(f"a team holds {config.n_pursuers} members, got {list(team)}")
@@ -118,23 +117,21 @@ class Evaluator:
     """One evaluation process of a run: plays chunks of hyperedges and monitors. Each actor
     runs single-threaded, so parallelism comes from actors side by side."""
 
-    def __init__(self, env_config: Mapping[str, Any]):
+    def __init__(self, config: PursuitConfig):
         # below the Oracle's processes, from the start (its imports compete with the env
         # runner's): monitors played while a generation trains take the CPU time its env
         # runners and learner leave, not theirs
         self.priority = lowest_priority()
         os.environ.setdefault("OMP_NUM_THREADS", "1")
         pin_threads(1)
-        self.env_config = dict(env_config)
+        self.config = config
         # Pay the simulator's compilation (or cache load) and the stacked forward's first
         # call now, while the run starts, rather than inside the first hyperedges.
-        from hola_ray.env.config import PursuitConfig
         from hola_ray.policies.learned import random_export
 
-        config = PursuitConfig.from_dict(self.env_config)
         exports = {v: random_export(config.obs_dim, seed=v) for v in range(2)}
         team = (0,) * (config.n_pursuers - 1) + (1,)
-        evaluate_teams(self.env_config, [team], exports, 1, [0])
+        evaluate_teams(config, [team], exports, 1, [0])
 
     def ping(self) -> bool:
         return True
@@ -147,7 +144,7 @@ class Evaluator:
         seeds: Sequence[int],
     ) -> list[EdgeResult]:
         """A chunk of hyperedges (`evaluate_teams`)."""
-        return evaluate_teams(self.env_config, teams, exports, episodes, seeds)
+        return evaluate_teams(self.config, teams, exports, episodes, seeds)
 
     def call(self, fn: Callable[..., Any], *args: Any) -> Any:
         """`fn(*args)` in this process (a monitor: validation, the population as a team)."""
@@ -158,8 +155,8 @@ class EvaluatorPool:
     """The driver's handles on a run's evaluation actors, started without waiting for them
     and recreated when one died."""
 
-    def __init__(self, env_config: Mapping[str, Any], workers: int, run_name: str = ""):
-        self.env_config = dict(env_config)
+    def __init__(self, config: PursuitConfig, workers: int, run_name: str = ""):
+        self.config = config
         self.workers = workers
         self.run_name = run_name
         self._actors: dict[int, ray.actor.ActorHandle] = {}
@@ -171,7 +168,7 @@ class EvaluatorPool:
             if k not in self._actors:
                 name = f"evaluator:{self.run_name}:{k}" if self.run_name else None
                 self._actors[k] = Evaluator.options(name=name, namespace="hola_ray").remote(
-                    self.env_config
+                    self.config
                 )
 
     def actors(self) -> dict[int, ray.actor.ActorHandle]:

@@ -19,6 +19,7 @@ import ray
 from ray.exceptions import RayActorError
 
 from hola_ray import interrupt
+from hola_ray.env.config import PursuitConfig
 from hola_ray.population.evaluators import EvaluatorPool, chunks, evaluate_teams
 from hola_ray.population.state import EdgeResult
 from hola_ray.progress import progress as progress_bar
@@ -108,7 +109,7 @@ def evaluate_edges(
 def evaluate_edges_here(
     edges: Sequence[tuple[int, ...]],
     exports: Mapping[int, Mapping[str, object]],
-    env_config: Mapping[str, object],
+    config: PursuitConfig,
     episodes: int,
     seed_of: Callable[[tuple[int, ...]], int],
     parts: int = 1,
@@ -125,7 +126,7 @@ def evaluate_edges_here(
             interrupt.check()
             teams = [edges[i] for i in part]
             seeds = [seed_of(e) for e in teams]
-            results += evaluate_teams(env_config, teams, exports, episodes, seeds)
+            results += evaluate_teams(config, teams, exports, episodes, seeds)
             bar.update(len(teams) * episodes)
     wall = time.perf_counter() - start
     return results, GrapherStats(len(edges), len(edges) * episodes, wall, 0)
@@ -134,7 +135,7 @@ def evaluate_edges_here(
 def weigh(
     edges: Sequence[tuple[int, ...]],
     exports: Mapping[int, Mapping[str, object]],
-    env_config: Mapping[str, object],
+    config: PursuitConfig,
     pool: EvaluatorPool | None,
     episodes: int,
     seed_of: Callable[[tuple[int, ...]], int],
@@ -147,7 +148,7 @@ def weigh(
     Grapher's figures for the metrics row."""
     if pool is None:
         results, stats = evaluate_edges_here(
-            edges, exports, env_config, episodes, seed_of, parts, desc, progress
+            edges, exports, config, episodes, seed_of, parts, desc, progress
         )
     else:
         results, stats = evaluate_edges(

@@ -1,5 +1,6 @@
 import math
 
+import numpy as np
 import pytest
 import yaml
 
@@ -77,12 +78,18 @@ def test_defaults_match_spec_table():
 @pytest.mark.parametrize(("n_p", "n_e"), [(1, 1), (3, 2), (5, 3)])
 @pytest.mark.parametrize("headings", [False, True])
 def test_obs_dim_is_the_layouts(n_p, n_e, headings):
-    from hola_ray.env.layout import ObsLayout
+
+    from hola_ray.env import BatchedPursuit
 
     cfg = PursuitConfig(n_pursuers=n_p, n_evaders=n_e, observe_headings=headings)
-    layout = ObsLayout.from_config(cfg)
+    layout = cfg.layout
     assert cfg.obs_dim == layout.dim == layout.base_dim + (n_p - 1) * headings
-    assert len(layout.bounds(cfg)[0]) == cfg.obs_dim
+    assert len(layout.bounds()[0]) == cfg.obs_dim
+    # the simulator writes that many entries, and the input size reads back its evaders
+    obs = BatchedPursuit(cfg, 1).reset(seeds=np.arange(1))
+    assert obs.shape[-1] == cfg.obs_dim
+    assert layout.evaders_for(cfg.obs_dim, n_p, headings) == n_e
+    assert layout.evaders_for(cfg.obs_dim + 1, n_p, headings) is None
 
 
 def test_yaml_round_trip(tmp_path):

@@ -276,5 +276,5 @@ def test_observed_headings_follow_the_unchanged_observation(frozen_config):
         [0.0, -0.75],  # pursuer 2: pursuer 0 (too far), pursuer 1
     ]
     np.testing.assert_allclose(seen.obs[0, :, base:], expected, atol=1e-6)
-    low, high = seen.layout.bounds(headings)
+    low, high = seen.layout.bounds()
     assert (low[base:] == -1).all() and (high[base:] == 1).all()

@@ -114,12 +114,12 @@ def test_partner_from_a_module_in_a_temporary_directory(
 
 
 def test_the_evaluation_plays_the_learners_number_of_evaders(learner_file, tmp_path):
-    from hola_ray.evaluate import learner_evaders
+    from hola_ray.evaluate import learners_scenario
 
-    assert learner_evaders(learner_file, PursuitConfig()) == 2
+    assert learners_scenario([learner_file]).n_evaders == 2
     one = tmp_path / "one.pt"
-    torch.save(random_export(PursuitConfig(n_evaders=1).obs_dim), one)
-    assert learner_evaders(one, PursuitConfig()) == 1
+    torch.save(random_export(PursuitConfig(n_evaders=1).obs_dim), one)  # no scenario recorded
+    assert learners_scenario([one]) == PursuitConfig(n_evaders=1)
     assert main([str(learner_file), str(one), "--pool", "hot"]) == 2  # not one scenario
 
 

@@ -193,7 +193,7 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     pre-training stops there, with half the cap's env steps. Stopped during its second
     check, a build resumes from the members saved at the first; never competent (success
     1.0 asked), it trains to the cap and metrics.csv says so."""
-    from hola_ray.methods import base
+    from hola_ray.methods import pretrain
     from hola_ray.oracle.trainer import Oracle
 
     smoke = yaml.safe_load(SMOKE.read_text())
@@ -215,14 +215,14 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     monkeypatch.setattr(Oracle, "__init__", real_oracle_init)
 
     judged = []
-    real = base.members_as_copies
+    real = pretrain.members_as_copies
 
     def judge(config, oracle):
         judged.append(real(config, oracle))  # played, then called competent the second time
         ok = {"success": 0.9, "collision": 0.1}
         return [ok] * len(judged[-1]) if len(judged) == 2 else judged[-1]
 
-    monkeypatch.setattr(base, "members_as_copies", judge)
+    monkeypatch.setattr(pretrain, "members_as_copies", judge)
     goal = {"until_success": 0.85, "until_collision": 0.15}
     said = train(smoke | {"generations": 0, "pretrain": until | goal}, tmp_path / "ok", capsys)
     assert len(judged) == 2 and "competent after 2," in said
@@ -239,7 +239,7 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
         ok = {"success": 0.9, "collision": 0.1}
         return [ok] * len(judged[-1]) if len(judged) in (2, 4, 5) else judged[-1]
 
-    monkeypatch.setattr(base, "members_as_copies", streaky)
+    monkeypatch.setattr(pretrain, "members_as_copies", streaky)
     twice = until | goal | {"env_steps": 6000, "until_in_a_row": 2}
     said = train(smoke | {"generations": 0, "pretrain": twice}, tmp_path / "twice", capsys)
     assert len(judged) == 5 and "(2 checks in a row)" in said
@@ -261,7 +261,7 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     (row,) = decided.metrics_rows()
     assert row["pretrain_competent"] == 1 and row["pretrain_members_success_min"] == 0.9
     assert (
-        base.passing_in_a_row(
+        pretrain.passing_in_a_row(
             [{"success": [0.9], "collision": [0.1]}, {"success": [0.5], "collision": [0.1]}]
             + [{"success": [0.9], "collision": [0.1]}] * 2,
             0.85,
@@ -279,7 +279,7 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
             raise KeyboardInterrupt
         return judged[-1]
 
-    monkeypatch.setattr(base, "members_as_copies", stopped)
+    monkeypatch.setattr(pretrain, "members_as_copies", stopped)
     # with a learning rate decaying over the build: the resumed build's goes on from the check
     lr, schedule = 1e-3, {"lr_decay_env_steps": 2000, "lr_final": 0.0}
     decaying = smoke | {"oracle": smoke["oracle"] | schedule | {"lr": lr}}
@@ -292,7 +292,7 @@ def test_pre_training_judges_its_members_as_copies_and_stops_once_all_are_compet
     assert first["env_steps"] == progress["env_steps"]
     assert first["success"] == [round(f["success"], 4) for f in judged[0]]
     seated: list[dict] = []
-    monkeypatch.setattr(base, "members_as_copies", real)
+    monkeypatch.setattr(pretrain, "members_as_copies", real)
     monkeypatch.setattr(Oracle, "set_trained_weights", lambda self, w: seated.append(dict(w)))
     rates: list[list[float]] = []
     real_start = Oracle.start_schedules_at

@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hola_ray.env.layout import ObsLayout
 from hola_ray.evaluation.pools import load_pool
 from hola_ray.evaluation.probe import reference_observations
 from hola_ray.export import resolve
@@ -50,7 +49,7 @@ def test_the_manifest_describes_every_observation_entry_and_the_action(tmp_path)
     path = export_onnx(policy, tmp_path / "a.onnx")
     data = manifest(policy, path, source)
     write_manifest(tmp_path / "a.json", data)
-    layout = ObsLayout.from_config(policy.config)
+    layout = policy.config.layout
     entries = data["observation"]
     assert [e["index"] for e in entries] == list(range(layout.dim))
     assert entries[layout.obstacle]["name"] == "obstacle.distance"

@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from hola_ray.env import BatchedPursuit, ObsLayout, PursuitConfig
+from hola_ray.env import BatchedPursuit, PursuitConfig
 from hola_ray.policies import APFA, APFConfig, Greedy, Vicsek, make_policy, policy_names
 
 
 def blank_obs(config: PursuitConfig, rows: int = 1) -> np.ndarray:
     """Observations with every evader captured, nothing near, no teammate seen."""
-    lay = ObsLayout.from_config(config)
+    lay = config.layout
     obs = np.zeros((rows, lay.dim), dtype=np.float32)
     for e in range(lay.n_evaders):
         obs[:, 3 * e] = config.unobserved_distance

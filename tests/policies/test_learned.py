@@ -10,11 +10,10 @@ import pytest
 import torch
 
 from hola_ray.env import PursuitConfig
-from hola_ray.env.layout import ObsLayout
 from hola_ray.policies.learned import FORMAT, MLPPolicy
 
 CONFIG = PursuitConfig(n_pursuers=3, n_evaders=1)
-LAYOUT = ObsLayout.from_config(CONFIG)
+LAYOUT = CONFIG.layout
 OBS = np.random.default_rng(0).uniform(0, 1, (40, LAYOUT.dim)).astype(np.float32)
 
 
@@ -87,7 +86,7 @@ def test_an_export_carries_its_scenario_and_loads_without_one(tmp_path):
     from hola_ray.methods.config import RunConfig
 
     run = RunConfig.from_dict({"env": {"n_evaders": 1, "horizon": 300}, "oracle": {"hidden": [8]}})
-    dim = ObsLayout.from_config(run.env).dim + len(run.oracle.model_features(run.env)["indices"])
+    dim = run.env.layout.dim + len(run.oracle.model_features(run.env)["indices"])
     rng = np.random.default_rng(0)
     state = {
         "encoder.actor_encoder.net.mlp.0.weight": rng.normal(size=(8, dim)),

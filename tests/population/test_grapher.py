@@ -52,7 +52,7 @@ def run(pool, on_result=None):
 @pytest.fixture(scope="module")
 def pool(ray_session):
     """Two evaluation actors, shared by the tests (each actor's start costs seconds)."""
-    actors = EvaluatorPool(ENV.to_dict(), workers=2)
+    actors = EvaluatorPool(ENV, workers=2)
     yield actors
     actors.shutdown()
 
@@ -79,7 +79,7 @@ def test_the_weights_come_back_in_the_order_of_the_hyperedges(baseline):
 
 def test_the_driver_plays_the_same_weights_as_the_actors(baseline):
     results, stats = evaluate_edges_here(
-        EDGES, EXPORTS, ENV.to_dict(), EPISODES, seed_of, parts=PARTS, progress=False
+        EDGES, EXPORTS, ENV, EPISODES, seed_of, parts=PARTS, progress=False
     )
     assert results == baseline
     assert (stats.edges, stats.episodes, stats.retries) == (len(EDGES), len(EDGES) * EPISODES, 0)
@@ -103,9 +103,9 @@ def test_killing_actors_mid_grapher_gives_the_same_weights(pool, baseline):
 
 
 def test_a_hyperedge_is_a_set_of_members():
-    a = evaluate_team(ENV.to_dict(), (0, 1, 2), EXPORTS, EPISODES, seed=3)
-    b = evaluate_team(ENV.to_dict(), (2, 0, 1), EXPORTS, EPISODES, seed=3)
-    c = evaluate_team(ENV.to_dict(), (0, 1, 2), EXPORTS, EPISODES, seed=4)
+    a = evaluate_team(ENV, (0, 1, 2), EXPORTS, EPISODES, seed=3)
+    b = evaluate_team(ENV, (2, 0, 1), EXPORTS, EPISODES, seed=3)
+    c = evaluate_team(ENV, (0, 1, 2), EXPORTS, EPISODES, seed=4)
     assert (a.team_return, a.length) == (b.team_return, b.length)
     assert (a.team_return, a.length) != (c.team_return, c.length)  # the seed matters
     assert np.isfinite(a.team_return)
@@ -118,7 +118,7 @@ def test_a_batched_chunk_plays_the_episodes_each_hyperedge_plays_alone():
     stacked forward pass rounds an action's last bit differently and an episode parts."""
     env = PursuitConfig()  # the full horizon: episodes that end at different times
     episodes = 32
-    batched = evaluate_teams(env.to_dict(), EDGES, EXPORTS, episodes, [seed_of(e) for e in EDGES])
+    batched = evaluate_teams(env, EDGES, EXPORTS, episodes, [seed_of(e) for e in EDGES])
     same = total = 0
     for edge, result in zip(EDGES, batched, strict=True):
         seed = seed_of(edge)
