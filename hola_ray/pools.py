@@ -1,4 +1,4 @@
-"""The unseen teammate pools (SPEC §3, paper Appendix): trained once, committed, verified.
+"""The unseen teammate pools (contract §3, paper Appendix): trained once, committed, verified.
 
     python -m hola_ray.pools build [--pool hot|het|validation] [--episodes 50] [--seeds 0 1 2]
     python -m hola_ray.pools show [--pool hot|het|validation]
@@ -71,7 +71,7 @@ def train_member(member: Member, progress: bool = True) -> tuple[Path, dict[str,
         facts = {"generation": best["generation"], "env_steps": best["env_steps"]}
         return out / "best.pt", facts
     if member.kind == "d3qn":
-        from hola_ray.evaluation.d3qn_train import train_d3qn
+        from hola_ray.oracle.d3qn_train import train_d3qn
 
         return train_d3qn(config_path, out, progress=progress)
     raise PoolError(f"{member.id} is not trained")
@@ -80,7 +80,7 @@ def train_member(member: Member, progress: bool = True) -> tuple[Path, dict[str,
 def member_config(member: Member):
     """A learned member's training config (`RunConfig` or `D3QNRun`): seed, env, values."""
     if member.kind == "d3qn":
-        from hola_ray.evaluation.d3qn_train import D3QNRun
+        from hola_ray.oracle.d3qn_train import D3QNRun
 
         return D3QNRun.from_yaml(ROOT / member.config)
     from hola_ray.methods.config import RunConfig

@@ -123,15 +123,6 @@ def plot_progress(run_dir: Path) -> Path:
     run = RunDir(run_dir)
     rows = list(csv.DictReader(run.metrics_csv.open()))
     best = run.best_generation()
-
-    def series(prefix: str, name: str) -> tuple[list[int], list[float], list[float]]:
-        have = [r for r in rows if r.get(f"{prefix}_{name}")]
-        return (
-            [int(r["generation"]) for r in have],
-            [float(r[f"{prefix}_{name}"]) for r in have],
-            [float(r[f"{prefix}_{name}_se"]) for r in have],
-        )
-
     fig = Figure(figsize=(21, 7.6))  # no pyplot, no global backend switched
     axes = fig.subplots(2, 5)
     for ax, name, label in (
@@ -139,57 +130,100 @@ def plot_progress(run_dir: Path) -> Path:
         (axes[0, 1], "collision", "collision rate"),
         (axes[0, 2], "return", "team return"),
     ):
-        for prefix, text, style in (
-            ("population", "G_0 (pre-trained)", "s"),
-            ("learner", "learner as judged", "o"),
-            ("val", "learner with the validation teammates", "^"),
-        ):
-            gens, mean, se = series(prefix, name)
-            if gens:
-                ax.errorbar(gens, mean, yerr=se, marker=style, capsize=3, label=text)
-        if name == "collision":
-            gens, mean, se = series("val", "learner_crash")
-            if gens:
-                ax.errorbar(gens, mean, yerr=se, marker="v", capsize=3, label="its own crash")
-        gens, mean, _ = series("learner", name)
-        value = dict(zip(gens, mean, strict=True))
-        gens, mean, _ = series("val", name)
-        chosen_on = dict(zip(gens, mean, strict=True)) or value  # best.pt's rule
-        accepted = [int(r["generation"]) for r in rows if r.get("accepted") == "1"]
-        shown = [g for g in accepted if g in value]
-        if shown:
-            ax.scatter(
-                shown,
-                [value[g] for g in shown],
-                s=110,
-                facecolors="none",
-                edgecolors="tab:green",
-                linewidths=1.5,
-                label="accepted",
-                zorder=3,
-            )
-        if best is not None and best in chosen_on:
-            ax.scatter(
-                [best],
-                [chosen_on[best]],
-                marker="*",
-                s=160,
-                color="gold",
-                edgecolors="k",
-                label="best.pt",
-                zorder=4,
-            )
-        ax.set(xlabel="generation", ylabel=label)
-        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2)
+        _outcome_panel(ax, rows, best, name, label)
     axes[0, 0].set_ylim(0, 1)
     axes[0, 1].set_ylim(0, 1)
-
     iterations = (
         list(csv.DictReader(run.iterations_csv.open())) if run.iterations_csv.is_file() else []
     )
+    _iteration_panels(iterations, axes[1, 0], axes[1, 1])
+    if RunConfig.from_yaml(run.config).strategy.self_play:  # no population, no φ
+        _length_panel(rows, axes[1, 2])
+    else:
+        _phi_panel(rows, axes[1, 2])
+    _wall_time_panels(rows, axes[0, 3], axes[1, 3])
+    _time_panels(rows, axes[0, 4], axes[1, 4])
+    fig.suptitle(run_dir.name, fontsize=9)
+    fig.tight_layout()
+    out = run_dir / "progress.png"
+    fig.savefig(out, dpi=120)
+    return out
+
+
+def _series(
+    rows: list[dict[str, str]], prefix: str, name: str
+) -> tuple[list[int], list[float], list[float]]:
+    """(generations, means, standard errors) of `<prefix>_<name>` over the rows that hold
+    it: a generation without the figure (no validation, no G_0 row) is left out, not 0."""
+    have = [r for r in rows if r.get(f"{prefix}_{name}")]
+    return (
+        [int(r["generation"]) for r in have],
+        [float(r[f"{prefix}_{name}"]) for r in have],
+        [float(r[f"{prefix}_{name}_se"]) for r in have],
+    )
+
+
+def _outcome_panel(ax, rows: list[dict[str, str]], best: int | None, name: str, label: str) -> None:
+    """One outcome (`success`, `collision` or `return`) per generation: G_0, the learner as
+    judged and the learner with the validation teammates (on `collision`, also its own
+    crash rate), with the accepted learners and best.pt marked."""
+    for prefix, text, style in (
+        ("population", "G_0 (pre-trained)", "s"),
+        ("learner", "learner as judged", "o"),
+        ("val", "learner with the validation teammates", "^"),
+    ):
+        gens, mean, se = _series(rows, prefix, name)
+        if gens:
+            ax.errorbar(gens, mean, yerr=se, marker=style, capsize=3, label=text)
+    if name == "collision":
+        gens, mean, se = _series(rows, "val", "learner_crash")
+        if gens:
+            ax.errorbar(gens, mean, yerr=se, marker="v", capsize=3, label="its own crash")
+    _mark_choices(ax, rows, best, name)
+    ax.set(xlabel="generation", ylabel=label)
+    ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2)
+
+
+def _mark_choices(ax, rows: list[dict[str, str]], best: int | None, name: str) -> None:
+    """Ring the accepted learners on the curve they were judged on, and star the best
+    generation on the curve best.pt is chosen on: the validation one where there is one
+    (its rule), else the learner's."""
+    gens, mean, _ = _series(rows, "learner", name)
+    value = dict(zip(gens, mean, strict=True))
+    gens, mean, _ = _series(rows, "val", name)
+    chosen_on = dict(zip(gens, mean, strict=True)) or value  # best.pt's rule
+    accepted = [int(r["generation"]) for r in rows if r.get("accepted") == "1"]
+    shown = [g for g in accepted if g in value]
+    if shown:
+        ax.scatter(
+            shown,
+            [value[g] for g in shown],
+            s=110,
+            facecolors="none",
+            edgecolors="tab:green",
+            linewidths=1.5,
+            label="accepted",
+            zorder=3,
+        )
+    if best is not None and best in chosen_on:
+        ax.scatter(
+            [best],
+            [chosen_on[best]],
+            marker="*",
+            s=160,
+            color="gold",
+            edgecolors="k",
+            label="best.pt",
+            zorder=4,
+        )
+
+
+def _iteration_panels(iterations: list[dict[str, str]], std, clipped) -> None:
+    """Per PPO iteration (iterations.csv), pre-training and the learners apart: the trained
+    policy's median std, and the share of its sampled actions at the Box's edge."""
     for ax, key, label in (
-        (axes[1, 0], "std_median", "policy std, median (RLlib's [−1, 1] units)"),
-        (axes[1, 1], "clipped", "sampled actions at the Box's edge"),
+        (std, "std_median", "policy std, median (RLlib's [−1, 1] units)"),
+        (clipped, "clipped", "sampled actions at the Box's edge"),
     ):
         for pretrain in (True, False):
             its = [r for r in iterations if (r["generation"] == "0") == pretrain and r.get(key)]
@@ -203,27 +237,28 @@ def plot_progress(run_dir: Path) -> Path:
         ax.set(xlabel="PPO iteration", ylabel=label)
         if iterations:
             ax.legend(fontsize=7)
-    if RunConfig.from_yaml(run.config).strategy.self_play:  # no population, no φ
-        gens, mean, se = series("learner", "length")
-        axes[1, 2].errorbar(gens, mean, yerr=se, marker="o", capsize=3)
-        axes[1, 2].set(xlabel="generation", ylabel="episode length (steps)")
-    else:
-        every = [int(r["generation"]) for r in rows]
-        axes[1, 2].plot(every, [float(r["phi_entropy"]) for r in rows], marker="o")
-        axes[1, 2].set(xlabel="generation", ylabel="φ entropy (nats)")
-        parted = [(int(r["generation"]), float(r["phi_tv"])) for r in rows if r.get("phi_tv")]
-        if parted:  # φ against the rival rule's (`Method.rival`), on its own axis
-            tv = axes[1, 2].twinx()
-            tv.plot(*zip(*parted, strict=True), color="tab:red", marker=".", lw=1)
-            tv.axhline(0.01, color="tab:red", ls=":", lw=0.8)
-            tv.set_ylabel("φ's distance from the rival rule's (TV)", color="tab:red")
-    _wall_time_panels(rows, axes[0, 3], axes[1, 3])
-    _time_panels(rows, axes[0, 4], axes[1, 4])
-    fig.suptitle(run_dir.name, fontsize=9)
-    fig.tight_layout()
-    out = run_dir / "progress.png"
-    fig.savefig(out, dpi=120)
-    return out
+
+
+def _length_panel(rows: list[dict[str, str]], ax) -> None:
+    """Self-play's stand-in for the φ panel (no population, no φ): the learner's episode
+    length per generation."""
+    gens, mean, se = _series(rows, "learner", "length")
+    ax.errorbar(gens, mean, yerr=se, marker="o", capsize=3)
+    ax.set(xlabel="generation", ylabel="episode length (steps)")
+
+
+def _phi_panel(rows: list[dict[str, str]], ax) -> None:
+    """φ's entropy per generation and, where the run logs it, φ's distance from the rival
+    rule's (`Method.rival`) on its own axis, the 0.01 line marked."""
+    every = [int(r["generation"]) for r in rows]
+    ax.plot(every, [float(r["phi_entropy"]) for r in rows], marker="o")
+    ax.set(xlabel="generation", ylabel="φ entropy (nats)")
+    parted = [(int(r["generation"]), float(r["phi_tv"])) for r in rows if r.get("phi_tv")]
+    if parted:
+        tv = ax.twinx()
+        tv.plot(*zip(*parted, strict=True), color="tab:red", marker=".", lw=1)
+        tv.axhline(0.01, color="tab:red", ls=":", lw=0.8)
+        tv.set_ylabel("φ's distance from the rival rule's (TV)", color="tab:red")
 
 
 def _wall_time_panels(rows: list[dict[str, str]], figures, speed) -> None:

@@ -26,6 +26,7 @@ from hola_ray.env.checks import (  # noqa: F401 - the readers' names, here as be
     require,
     yaml_value,
 )
+from hola_ray.env.layout import ObsLayout
 
 Rect = tuple[float, float, float, float]
 """An axis-aligned box as (centre_x, centre_y, width, height), metres."""
@@ -246,6 +247,19 @@ class PursuitConfig:
     """the escaper's parameters (SPEC §2)"""
 
     def __post_init__(self) -> None:
+        # In this order: the first failing check is the error a bad config raises, and
+        # the later checks read values the earlier ones vouch for (a diagonal needs
+        # positive sides, a packing bound needs ordered regions).
+        self._check_magnitudes()
+        self._check_pursuer_model()
+        self._check_unobserved_distance()
+        self._check_counts()
+        self._check_obstacles()
+        self._check_spawn()
+
+    def _check_magnitudes(self) -> None:
+        """Lengths, speeds, times and the turn: finite, and positive except the distances
+        that may be 0 (no margin, no separation)."""
         positive = (
             "arena_width",
             "arena_height",
@@ -279,6 +293,11 @@ class PursuitConfig:
                 value,
             )
         require(self.max_turn <= math.pi, "max_turn", "in (0, π]", self.max_turn)
+
+    def _check_pursuer_model(self) -> None:
+        """What a pursuer observes beyond the paper's layout, and how its velocity follows a
+        command: a bool, a share in (0, 1] and a delay of 0 or 1 steps (bools refused as
+        numbers, so a YAML `true` cannot pass for 1)."""
         value = self.observe_headings
         require(isinstance(value, bool), "observe_headings", "true or false", value)
         value = self.pursuer_response
@@ -287,6 +306,10 @@ class PursuitConfig:
         value = self.pursuer_response_delay
         ok = isinstance(value, int) and not isinstance(value, bool)
         require(ok and value in (0, 1), "pursuer_response_delay", "0 or 1", value)
+
+    def _check_unobserved_distance(self) -> None:
+        """The reading of what is not seen must exceed every reading of what is, or a policy
+        could not tell a far teammate from an unobserved one."""
         diagonal = math.hypot(self.arena_width, self.arena_height) / self.obs_distance_scale
         require(
             self.unobserved_distance > diagonal,
@@ -294,12 +317,19 @@ class PursuitConfig:
             f"> the largest observable distance reading ({diagonal:.3f}), so it is unambiguous",
             self.unobserved_distance,
         )
+
+    def _check_counts(self) -> None:
+        """Drones per team and steps per episode: integers, at least one of each, the
+        horizon at most a million steps."""
         for name in ("n_pursuers", "n_evaders"):
             value = getattr(self, name)
             require(isinstance(value, int) and value >= 1, name, "an integer >= 1", value)
         value = self.horizon
         require(isinstance(value, int) and value >= 1, "horizon", "an integer >= 1", value)
         require(value <= 10**6, "horizon", "an integer in [1, 1,000,000]", value)
+
+    def _check_obstacles(self) -> None:
+        """Each bar a box of positive size wholly inside the arena."""
         for i, rect in enumerate(self.obstacles):
             name = f"obstacles[{i}]"
             require(len(rect) == 4, name, "(centre_x, centre_y, width, height)", rect)
@@ -317,6 +347,11 @@ class PursuitConfig:
                 f"inside the arena [0, {self.arena_width}] × [0, {self.arena_height}]",
                 rect,
             )
+
+    def _check_spawn(self) -> None:
+        """Both spawn regions ordered and inside the arena, then each large enough for its
+        team: rejection sampling must be able to place every drone (a loose packing
+        bound)."""
         for name in ("pursuer_spawn", "evader_spawn"):
             region = getattr(self, name)
             require(len(region) == 4, name, "(x_min, x_max, y_min, y_max)", region)
@@ -328,7 +363,6 @@ class PursuitConfig:
                 f"an ordered region inside [0, {self.arena_width}] × [0, {self.arena_height}]",
                 region,
             )
-        # Rejection sampling must be able to place every drone: a loose packing bound.
         for name, count in (("pursuer_spawn", self.n_pursuers), ("evader_spawn", self.n_evaders)):
             x0, x1, y0, y1 = getattr(self, name)
             s = self.spawn_separation
@@ -344,10 +378,16 @@ class PursuitConfig:
 
     # ---- derived values -------------------------------------------------------------
     @property
+    def layout(self) -> ObsLayout:
+        """Where each reading sits in one pursuer's observation."""
+        diagonal = math.hypot(self.arena_width, self.arena_height)
+        far = max(self.unobserved_distance, diagonal / self.obs_distance_scale)
+        return ObsLayout(self.n_pursuers, self.n_evaders, self.observe_headings, far)
+
+    @property
     def obs_dim(self) -> int:
-        """Length of one pursuer's observation (`ObsLayout.dim`, which a test holds equal)."""
-        headings = self.n_pursuers - 1 if self.observe_headings else 0
-        return 3 * self.n_evaders + 2 + 2 * (self.n_pursuers - 1) + 4 + headings
+        """Length of one pursuer's observation."""
+        return self.layout.dim
 
     # ---- (de)serialisation ----------------------------------------------------------
     @classmethod

@@ -96,130 +96,142 @@ def export_onnx(policy: MLPPolicy, path: str | Path) -> Path:
 
 def observation_entries(config: PursuitConfig) -> list[dict[str, Any]]:
     """One entry per observation index: what it measures, frame, units, scale and the
-    value it reads when unobserved, as a flight stack must fill it (SPEC §1)."""
-    layout = ObsLayout.from_config(config)
-    scale = config.obs_distance_scale
-    far = config.unobserved_distance
-    ego = "this drone's body frame: the angle from its heading, positive to its left (CCW)"
+    value it reads when unobserved, as a flight stack must fill it (SPEC §1). Each block
+    starts where the config's `ObsLayout` puts it, so the manifest cannot drift from the
+    layout the simulator writes."""
+    layout = config.layout
+    blocks = (
+        (layout.evaders, _evader_entries(config, layout)),
+        (layout.obstacle, _obstacle_entries(config)),
+        (layout.teammates, _teammate_entries(config, layout)),
+        (layout.own, _own_entries(config)),
+        (layout.base_dim, _heading_entries(config, layout)),
+    )
     out: list[dict[str, Any]] = []
+    for offset, entries in blocks:
+        assert len(out) == offset
+        out.extend({"index": offset + k} | e for k, e in enumerate(entries))
+    assert len(out) == layout.dim
+    return out
 
-    def entry(name: str, measures: str, frame: str, units: str, scaled: str, **more) -> None:
-        out.append(
-            {"index": len(out), "name": name, "measures": measures, "frame": frame}
-            | {"units": units, "scale": scaled}
-            | more
-        )
 
-    for e in range(config.n_evaders):
+_EGO = "this drone's body frame: the angle from its heading, positive to its left (CCW)"
+"""The frame of every bearing and relative heading."""
+
+_ANGLE = "divided by π, in [−1, 1]"
+"""The scale of every angle."""
+
+_SEEN = "always observed"
+"""What an entry that no state can hide reads when unobserved."""
+
+
+def _entry(
+    name: str, measures: str, frame: str, units: str, scaled: str, unobserved: Any
+) -> dict[str, Any]:
+    """One observation entry, its index left to `observation_entries`."""
+    return {
+        "name": name,
+        "measures": measures,
+        "frame": frame,
+        "units": units,
+        "scale": scaled,
+        "unobserved": unobserved,
+    }
+
+
+def _evader_entries(config: PursuitConfig, layout: ObsLayout) -> list[dict[str, Any]]:
+    """(distance, bearing, relative heading) of each evader, in evader order."""
+    scale, far = config.obs_distance_scale, config.unobserved_distance
+    out = []
+    for e in range(layout.n_evaders):
         captured = f"reads {far} (and 0, 0 for the next two) once evader {e} is captured"
-        entry(
-            f"evader_{e}.distance",
-            f"distance from this drone to evader {e}",
+        out += [
+            _entry(
+                f"evader_{e}.distance",
+                f"distance from this drone to evader {e}",
+                "world (a length)",
+                "m",
+                f"divided by {scale}",
+                captured,
+            ),
+            _entry(f"evader_{e}.bearing", f"direction to evader {e}", _EGO, "rad", _ANGLE, 0.0),
+            _entry(
+                f"evader_{e}.heading",
+                f"evader {e}'s heading (direction of motion) minus this drone's heading",
+                _EGO,
+                "rad",
+                _ANGLE,
+                0.0,
+            ),
+        ]
+    return out
+
+
+def _obstacle_entries(config: PursuitConfig) -> list[dict[str, Any]]:
+    """(distance, bearing) of the nearest obstacle point, which is always there."""
+    return [
+        _entry(
+            "obstacle.distance",
+            "distance to the nearest point of a wall, a bar, or a disabled (landed) teammate",
             "world (a length)",
             "m",
-            f"divided by {scale}",
-            unobserved=captured,
-        )
-        entry(
-            f"evader_{e}.bearing",
-            f"direction to evader {e}",
-            ego,
-            "rad",
-            "divided by π, in [−1, 1]",
-            unobserved=0.0,
-        )
-        entry(
-            f"evader_{e}.heading",
-            f"evader {e}'s heading (direction of motion) minus this drone's heading",
-            ego,
-            "rad",
-            "divided by π, in [−1, 1]",
-            unobserved=0.0,
-        )
-    entry(
-        "obstacle.distance",
-        "distance to the nearest point of a wall, a bar, or a disabled (landed) teammate",
-        "world (a length)",
-        "m",
-        f"divided by {scale}",
-        unobserved="always observed",
+            f"divided by {config.obs_distance_scale}",
+            _SEEN,
+        ),
+        _entry("obstacle.bearing", "direction to that nearest point", _EGO, "rad", _ANGLE, _SEEN),
+    ]
+
+
+def _teammate_entries(config: PursuitConfig, layout: ObsLayout) -> list[dict[str, Any]]:
+    """(distance, bearing) of each other pursuer, in seat order with this drone left out."""
+    gone = (
+        f"reads {config.unobserved_distance} (and bearing 0) beyond {config.perception_range} "
+        "m or once that teammate is disabled"
     )
-    entry(
-        "obstacle.bearing",
-        "direction to that nearest point",
-        ego,
-        "rad",
-        "divided by π, in [−1, 1]",
-        unobserved="always observed",
-    )
-    for j in range(config.n_pursuers - 1):
-        gone = (
-            f"reads {far} (and bearing 0) beyond {config.perception_range} m or once "
-            "that teammate is disabled"
-        )
-        entry(
-            f"teammate_{j}.distance",
-            f"distance to the {j}-th other pursuer, in seat order with this drone left out",
-            "world (a length)",
-            "m",
-            f"divided by {scale}",
-            unobserved=gone,
-        )
-        entry(
-            f"teammate_{j}.bearing",
-            "direction to that teammate",
-            ego,
-            "rad",
-            "divided by π, in [−1, 1]",
-            unobserved=0.0,
-        )
+    out = []
+    for j in range(layout.n_pursuers - 1):
+        out += [
+            _entry(
+                f"teammate_{j}.distance",
+                f"distance to the {j}-th other pursuer, in seat order with this drone left out",
+                "world (a length)",
+                "m",
+                f"divided by {config.obs_distance_scale}",
+                gone,
+            ),
+            _entry(f"teammate_{j}.bearing", "direction to that teammate", _EGO, "rad", _ANGLE, 0.0),
+        ]
+    return out
+
+
+def _own_entries(config: PursuitConfig) -> list[dict[str, Any]]:
+    """This drone's position and heading in the arena frame, the only absolute readings."""
     arena = (
         "arena frame: origin at the lower-left corner, x right, y up "
         f"({config.arena_width} × {config.arena_height} m)"
     )
-    entry(
-        "own.x",
-        "this drone's x",
-        arena,
-        "m",
-        f"divided by {config.arena_width}",
-        unobserved="always observed",
-    )
-    entry(
-        "own.y",
-        "this drone's y",
-        arena,
-        "m",
-        f"divided by {config.arena_height}",
-        unobserved="always observed",
-    )
-    entry(
-        "own.cos_heading",
-        "cos of this drone's heading",
-        arena,
-        "1",
-        "none",
-        unobserved="always observed",
-    )
-    entry(
-        "own.sin_heading",
-        "sin of this drone's heading",
-        arena,
-        "1",
-        "none",
-        unobserved="always observed",
-    )
-    for j in range(config.n_pursuers - 1 if layout.headings else 0):
-        entry(
+    return [
+        _entry("own.x", "this drone's x", arena, "m", f"divided by {config.arena_width}", _SEEN),
+        _entry("own.y", "this drone's y", arena, "m", f"divided by {config.arena_height}", _SEEN),
+        _entry("own.cos_heading", "cos of this drone's heading", arena, "1", "none", _SEEN),
+        _entry("own.sin_heading", "sin of this drone's heading", arena, "1", "none", _SEEN),
+    ]
+
+
+def _heading_entries(config: PursuitConfig, layout: ObsLayout) -> list[dict[str, Any]]:
+    """The other pursuers' relative headings, which follow the base observation only with
+    `observe_headings` (none otherwise)."""
+    return [
+        _entry(
             f"teammate_{j}.heading",
             f"the {j}-th other pursuer's heading minus this drone's heading",
-            ego,
+            _EGO,
             "rad",
-            "divided by π, in [−1, 1]",
-            unobserved=f"reads 0 beyond {config.perception_range} m or once disabled",
+            _ANGLE,
+            f"reads 0 beyond {config.perception_range} m or once disabled",
         )
-    assert len(out) == layout.dim
-    return out
+        for j in range(layout.dim - layout.base_dim)
+    ]
 
 
 def manifest(

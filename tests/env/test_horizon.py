@@ -62,7 +62,7 @@ def test_an_episode_that_ended_before_the_horizon_is_left_terminated():
 
 
 def test_the_dqn_and_the_pettingzoo_path_apply_it():
-    from hola_ray.evaluation.d3qn_train import (
+    from hola_ray.oracle.d3qn_train import (
         D3QNRun,
         D3QNSettings,
         HorizonTruncates,

@@ -12,7 +12,6 @@ import torch
 
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
-from hola_ray.env.layout import ObsLayout
 from hola_ray.policies.apf import APFA
 from hola_ray.policies.d3qn import D3QNG, PairActor, dacoop_state
 from hola_ray.policies.greedy import Greedy
@@ -33,7 +32,7 @@ def observations(config: PursuitConfig, steps: int = 40) -> np.ndarray:
 
 
 def test_the_dacoop_state_is_read_from_the_observation():
-    lay = ObsLayout.from_config(TWO)
+    lay = TWO.layout
     obs = np.zeros((2, TWO.obs_dim), np.float32)
     obs[:, 0:3] = (0.3, 0.25, 0.1)  # first evader
     obs[:, 3:6] = (0.9, -0.5, 0.0)  # second evader: not in the state
@@ -63,7 +62,7 @@ def test_a_pair_is_played_by_apf_a_and_greedy_takes_over_once_the_first_evader_i
 
 @pytest.fixture(scope="module")
 def dqn(ray_session, tmp_path_factory):
-    from hola_ray.evaluation.d3qn_train import D3QNRun, D3QNSettings, build
+    from hola_ray.oracle.d3qn_train import D3QNRun, D3QNSettings, build
 
     run = D3QNRun(
         seed=3,
@@ -86,7 +85,7 @@ def dqn(ray_session, tmp_path_factory):
 def test_training_is_reproducible(dqn):
     """The same run trains the same network: RLlib seeds its env runner and learner, the
     replay buffer's draws are seeded by `build`, and workers share the hash seed."""
-    from hola_ray.evaluation.d3qn_train import MODULE, build
+    from hola_ray.oracle.d3qn_train import MODULE, build
 
     run, algo = dqn
     again = build(run)
@@ -102,7 +101,7 @@ def test_training_is_reproducible(dqn):
 
 
 def test_the_export_plays_the_dqn_modules_greedy_pair(local_learner, dqn):
-    from hola_ray.evaluation.d3qn_train import MODULE, export_from_rllib
+    from hola_ray.oracle.d3qn_train import MODULE, export_from_rllib
 
     run, algo = dqn
     state = algo.learner_group.get_weights([MODULE])[MODULE]
@@ -165,10 +164,10 @@ def test_d3qn_g_holds_its_pair_for_the_decision_interval_and_a_reset_repicks():
 
 def test_the_training_env_plays_a_pair_for_the_interval_and_sums_its_rewards():
     from hola_ray.env.pettingzoo_env import PursuitEnv
-    from hola_ray.evaluation.d3qn_train import D3QNEnv
+    from hola_ray.oracle.d3qn_train import D3QNEnv
 
     config = dataclasses.replace(ONE, horizon=200)
-    env = D3QNEnv({**config.to_dict(), "decision_interval": 4})
+    env = D3QNEnv({"scenario": config, "decision_interval": 4})
     twin, actor = PursuitEnv(config), PairActor(config)
     env.reset(seed=5)
     obs, _ = twin.reset(seed=5)
@@ -196,7 +195,7 @@ def test_training_exports_the_best_validated_network(ray_session, tmp_path):
 
     import yaml
 
-    from hola_ray.evaluation.d3qn_train import D3QNRun, train_d3qn, validate
+    from hola_ray.oracle.d3qn_train import D3QNRun, train_d3qn, validate
 
     config = tmp_path / "tiny.yaml"
     config.write_text(
@@ -238,7 +237,7 @@ def test_training_exports_the_best_validated_network(ray_session, tmp_path):
 
 
 def test_the_export_is_chosen_by_the_rule_written_in_the_config():
-    from hola_ray.evaluation.d3qn_train import D3QNSettings, Validated, choose
+    from hola_ray.oracle.d3qn_train import D3QNSettings, Validated, choose
 
     runs = [
         Validated(1000, 0.40, 0.50),
@@ -274,7 +273,7 @@ def test_the_export_is_chosen_by_the_rule_written_in_the_config():
 def test_a_malformed_d3qn_config_is_one_line_naming_file_line_and_field(tmp_path, text, message):
     """D3QN-G configs are read with the run config's checks (types, then ranges)."""
     from hola_ray.env.config import ConfigError
-    from hola_ray.evaluation.d3qn_train import D3QNRun
+    from hola_ray.oracle.d3qn_train import D3QNRun
 
     path = tmp_path / "d3qn.yaml"
     path.write_text(text)

@@ -1,6 +1,6 @@
 """Training D3QN-G with RLlib's DQN (new API stack): see `hola_ray.policies.d3qn`.
 
-    python -m hola_ray.evaluation.d3qn_train configs/pools/d3qn-g-1.yaml runs/pools/d3qn-g-1
+    python -m hola_ray.oracle.d3qn_train configs/pools/d3qn-g-1.yaml runs/pools/d3qn-g-1
 
 `python -m hola_ray.pools build --pool het` calls `train_d3qn` for each D3QN-G member; a
 finished run directory (its `export.pt`) is reused, never retrained.
@@ -38,7 +38,6 @@ from hola_ray.env.checks import (
 )
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.horizon import horizon_is_truncation
-from hola_ray.env.layout import ObsLayout
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.policies.d3qn import D3QNG, FORMAT, PairActor, dacoop_state, state_dim
 
@@ -171,10 +170,10 @@ class D3QNEnv(MultiAgentEnv):
     def __init__(self, env_config: dict[str, Any] | None = None) -> None:
         super().__init__()
         env_config = dict(env_config or {})
-        self.interval = int(env_config.pop("decision_interval", 1))
-        self.config = PursuitConfig.from_dict(env_config)
+        self.interval = int(env_config.get("decision_interval", 1))
+        self.config = env_config.get("scenario") or PursuitConfig()
         self.env = PursuitEnv(self.config)
-        self.layout = ObsLayout.from_config(self.config)
+        self.layout = self.config.layout
         self.actor = PairActor(self.config)
         self.agents = self.possible_agents = list(self.env.possible_agents)
         far = self.config.unobserved_distance
@@ -241,7 +240,7 @@ def algorithm_config(run: D3QNRun):
     return (
         DQNConfig()
         .environment(
-            ENV_NAME, env_config={**run.env.to_dict(), "decision_interval": s.decision_interval}
+            ENV_NAME, env_config={"scenario": run.env, "decision_interval": s.decision_interval}
         )
         .env_runners(
             num_env_runners=s.env_runners,
@@ -384,46 +383,10 @@ def train_d3qn(
         init_local_ray()
     algo = build(run)
     start = time.perf_counter()
-    steps = 0
-    rows = []
-    every = run.d3qn.validate_every
-    validated: list[Validated] = []
-    exports: list[dict[str, Any]] = []
     try:
-        while steps < run.d3qn.env_steps:
-            result = algo.train()
-            runners = result.get("env_runners", {})
-            before, steps = steps, int(runners.get("num_env_steps_sampled_lifetime", steps))
-            row = {
-                "env_steps": steps,
-                "episode_return": round(float(runners.get("episode_return_mean", np.nan)), 3),
-                "episode_length": round(float(runners.get("episode_len_mean", np.nan)), 1),
-                "validation_success": "",
-                "validation_collision": "",
-                "wall_s": round(time.perf_counter() - start, 1),
-            }
-            if every and (steps // every > before // every or steps >= run.d3qn.env_steps):
-                export = export_from_rllib(algo.learner_group.get_weights([MODULE])[MODULE], run)
-                success, collision = validate(export, run)
-                row["validation_success"], row["validation_collision"] = success, collision
-                validated.append(Validated(steps, success, collision))
-                exports.append(export)
-                if progress:
-                    print(
-                        f"d3qn {out.name}: validation at {steps:,} env steps: success "
-                        f"{success:.1%}, collision {collision:.1%}",
-                        flush=True,
-                    )
-            rows.append(row)
-            if progress and len(rows) % 5 == 0:
-                print(
-                    f"d3qn {out.name}: {steps:,} / {run.d3qn.env_steps:,} env steps, "
-                    f"return {row['episode_return']}, length {row['episode_length']}, "
-                    f"{row['wall_s']:.0f} s",
-                    flush=True,
-                )
+        steps, rows, validated, exports = _train(algo, run, start, out.name, progress)
         if not validated:
-            export = export_from_rllib(algo.learner_group.get_weights([MODULE])[MODULE], run)
+            export = _export(algo, run)
             chosen: Validated | None = None
         else:
             k = choose(validated, run.d3qn)
@@ -435,6 +398,66 @@ def train_d3qn(
         writer.writeheader()
         writer.writerows(rows)
     torch.save(export, out / "export.pt")
+    facts = _facts(run, steps, chosen, start)
+    done.write_text(json.dumps(facts))
+    return out / "export.pt", facts
+
+
+def _train(
+    algo, run: D3QNRun, start: float, name: str, progress: bool
+) -> tuple[int, list[dict[str, Any]], list[Validated], list[dict[str, Any]]]:
+    """Train to `run.d3qn.env_steps`: the env steps sampled, a progress row per RLlib
+    iteration, and the greedy network validated and exported each `validate_every` env
+    steps and at the end, for `choose`. With `progress`, the run (`name`) says where it
+    is every five iterations and at each validation."""
+    steps = 0
+    rows = []
+    every = run.d3qn.validate_every
+    validated: list[Validated] = []
+    exports: list[dict[str, Any]] = []
+    while steps < run.d3qn.env_steps:
+        result = algo.train()
+        runners = result.get("env_runners", {})
+        before, steps = steps, int(runners.get("num_env_steps_sampled_lifetime", steps))
+        row = {
+            "env_steps": steps,
+            "episode_return": round(float(runners.get("episode_return_mean", np.nan)), 3),
+            "episode_length": round(float(runners.get("episode_len_mean", np.nan)), 1),
+            "validation_success": "",
+            "validation_collision": "",
+            "wall_s": round(time.perf_counter() - start, 1),
+        }
+        if every and (steps // every > before // every or steps >= run.d3qn.env_steps):
+            export = _export(algo, run)
+            success, collision = validate(export, run)
+            row["validation_success"], row["validation_collision"] = success, collision
+            validated.append(Validated(steps, success, collision))
+            exports.append(export)
+            if progress:
+                print(
+                    f"d3qn {name}: validation at {steps:,} env steps: success "
+                    f"{success:.1%}, collision {collision:.1%}",
+                    flush=True,
+                )
+        rows.append(row)
+        if progress and len(rows) % 5 == 0:
+            print(
+                f"d3qn {name}: {steps:,} / {run.d3qn.env_steps:,} env steps, "
+                f"return {row['episode_return']}, length {row['episode_length']}, "
+                f"{row['wall_s']:.0f} s",
+                flush=True,
+            )
+    return steps, rows, validated, exports
+
+
+def _export(algo, run: D3QNRun) -> dict[str, Any]:
+    """The DQN module's current weights as the plain-torch export."""
+    return export_from_rllib(algo.learner_group.get_weights([MODULE])[MODULE], run)
+
+
+def _facts(run: D3QNRun, steps: int, chosen: Validated | None, start: float) -> dict[str, Any]:
+    """done.json: how far the run trained, which network it exported (without validation,
+    the last) and, with validation, by which rule and what that network scored."""
     facts = {
         "env_steps": steps,
         "exported_at_env_steps": steps if chosen is None else chosen.env_steps,
@@ -448,12 +471,11 @@ def train_d3qn(
             "validation_collision": chosen.collision,
             "validation_episodes": run.d3qn.validate_episodes,
         }
-    done.write_text(json.dumps(facts))
-    return out / "export.pt", facts
+    return facts
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m hola_ray.evaluation.d3qn_train")
+    parser = argparse.ArgumentParser(prog="python -m hola_ray.oracle.d3qn_train")
     parser.add_argument("config", type=Path)
     parser.add_argument("out", type=Path)
     args = parser.parse_args(argv)
@@ -463,12 +485,12 @@ def main(argv: list[str] | None = None) -> None:
 
 def script() -> None:
     """`hola-d3qn` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
-    hola_ray.evaluation.d3qn_train` runs it (`hola_ray.process.fixed_hash_seed`)."""
+    hola_ray.oracle.d3qn_train` runs it (`hola_ray.process.fixed_hash_seed`)."""
     import sys
 
     from hola_ray.process import fixed_hash_seed, leave
 
-    fixed_hash_seed("hola_ray.evaluation.d3qn_train", sys.argv[1:])
+    fixed_hash_seed("hola_ray.oracle.d3qn_train", sys.argv[1:])
     main()
     leave(0)
 
