@@ -1,6 +1,8 @@
 """Where hola_ray keeps its artefacts: the repository root, defined once, and the homes
-under it; and the one reader and verifier of the manifests that pools and shipped
-populations carry (`read_manifest`, `verify_files`).
+under it; the one lookup of an artefact by name or folder (`artefact_dir`: pools, the
+validation set, shipped populations); and the one reader and verifier of the manifests
+that pools and shipped populations carry (`read_manifest`, its lenient `manifest_or_none`,
+`manifest_sha256`, `verify_files`).
 
 Committed artefacts live under the repository: the teammate pools in `pools/`, the shipped
 partner populations in `pools/populations/`, the configs that built them in `configs/`.
@@ -39,6 +41,44 @@ def sha256(path: Path) -> str:
         for block in iter(lambda: f.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+def artefact_dir(
+    item: str | Path,
+    known: Mapping[str, Path],
+    what: str,
+    error: type[Exception],
+    hint: str = "",
+) -> Path:
+    """An artefact's folder: a name of `known` (name → its folder), or a folder holding a
+    manifest; else one `error` saying "`what` 'item': give one of …", `hint` after it (how
+    to build one). Only a `str` is taken for a name; a `Path` is a folder."""
+    if isinstance(item, str) and item in known:
+        return known[item]
+    folder = Path(item)
+    if (folder / MANIFEST).is_file():
+        return folder
+    raise error(
+        f"{what} {str(item)!r}: give one of {', '.join(known) or '(none built)'} "
+        f"or a folder with a {MANIFEST}{hint}"
+    )
+
+
+def manifest_sha256(folder: Path) -> str:
+    """The sha256 of `folder`'s manifest: the artefact's fingerprint, since the manifest holds
+    the sha256 of every file of it (changes with any rebuild)."""
+    return sha256(folder / MANIFEST)
+
+
+def manifest_or_none(folder: Path) -> dict[str, Any] | None:
+    """`folder`'s manifest, of any format, or None where there is none, it cannot be read or
+    it is no JSON object: for a question a manifest may answer (which scenario a member file
+    was trained in), never a check (`read_manifest`)."""
+    try:
+        manifest = json.loads((folder / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return None
+    return manifest if isinstance(manifest, dict) else None
 
 
 def read_manifest(folder: Path, fmt: str, error: type[Exception], missing: str) -> dict[str, Any]:

@@ -1,6 +1,6 @@
-"""The unseen teammate pools (SPEC §3, paper Appendix) as this library loads them: the
+"""The unseen teammate pools (docs/contract.md §3, paper Appendix) as this library loads them: the
 members, the manifests and their hashes, and the validation set. Built by the command
-`python -m hola_ray.pools` (`hola_ray/pools.py`).
+`python -m hola_ray pools` (`hola_ray/commands/pools.py`).
 
 A pool is a folder `pools/<name>/` holding one weights file per learned member and
 `manifest.json`: per member its paper name, kind, file and the file's sha256, the config
@@ -147,18 +147,12 @@ class ScenarioAdapter(Policy):
 # ---- manifests and hashes -------------------------------------------------------------------
 def pool_dir(pool: str | Path) -> Path:
     """`hot`, `het` or a folder holding a manifest → the pool's folder."""
-    if isinstance(pool, str) and pool in POOLS:
-        return POOLS_DIR / pool
-    path = Path(pool)
-    if (path / MANIFEST).is_file():
-        return path
-    raise PoolError(
-        f"unknown pool {str(pool)!r}: give one of {', '.join(POOLS)} or a folder with a {MANIFEST}"
-    )
+    known = {name: POOLS_DIR / name for name in POOLS}
+    return homes.artefact_dir(pool, known, "unknown pool", PoolError)
 
 
 def read_manifest(folder: Path) -> dict[str, Any]:
-    missing = f"build it with python -m hola_ray.pools build --pool {folder.name}"
+    missing = f"build it with python -m hola_ray pools build --pool {folder.name}"
     return homes.read_manifest(folder, FORMAT, PoolError, missing)
 
 
@@ -180,7 +174,7 @@ def load_member(folder: Path, mid: str, entry: dict[str, Any], config: PursuitCo
     if kind not in ("ppo", "d3qn"):
         raise PoolError(f"pool {folder.name}: member {mid} has an unknown kind {kind!r}")
     if kind == "d3qn" and scenario["n_pursuers"] == config.n_pursuers:
-        # D3QN-G reads the first evader only and plays Greedy once it is caught (SPEC §3):
+        # D3QN-G reads the first evader only and plays Greedy once it is caught (contract §3):
         # it plays any number of evaders as it is
         try:
             return load_policy(folder / entry["file"], config, name=entry["name"])

@@ -1,5 +1,5 @@
-"""The zero-shot evaluation's figures (paper §V, Fig. 4; SPEC §5): a learner against an
-unseen teammate pool, and the BR-Prox score. The command: `python -m hola_ray.evaluate`.
+"""The zero-shot evaluation's figures (paper §V, Fig. 4; docs/contract.md §5): a learner against an
+unseen teammate pool, and the BR-Prox score. The command: `python -m hola_ray evaluate`.
 
 Per learner and pool, `episodes` episodes per seed: the learner sits in a random seat
 and its n_p − 1 teammates are drawn from the pool, uniformly with replacement, per episode.
@@ -36,7 +36,7 @@ from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.scale import CEILINGS, FLOOR, play_references, reference_figures
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.evaluation.teams import play
-from hola_ray.homes import sha256
+from hola_ray.homes import manifest_sha256
 
 
 # ---- BR-Prox score --------------------------------------------------------------------------
@@ -149,7 +149,7 @@ def episode_record(played: Mapping[str, np.ndarray]) -> dict[str, list]:
 def pool_fingerprints(names: Sequence[str]) -> dict[str, str]:
     """Pool name → the sha256 of its manifest (which holds every member file's sha256): an
     evaluation cached under one fingerprint is stale once the pool is rebuilt."""
-    return {name: sha256(pool_dir(name) / "manifest.json") for name in names}
+    return {name: manifest_sha256(pool_dir(name)) for name in names}
 
 
 def evaluate(

@@ -19,7 +19,6 @@ as the RLlib module did (`hola_ray.oracle.module`).
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from hola_ray import homes
 from hola_ray.env.config import PursuitConfig
 from hola_ray.policies.base import Policy
 
@@ -363,11 +363,8 @@ def manifest_scenario(file: str | Path) -> dict | None:
     exports carrying it. None for a file no manifest lists."""
     file = Path(file).resolve()
     for folder in (file.parent, file.parent.parent):
-        try:
-            manifest = json.loads((folder / "manifest.json").read_text())
-        except (OSError, ValueError):
-            continue
-        if not isinstance(manifest, dict):
+        manifest = homes.manifest_or_none(folder)
+        if manifest is None:
             continue
         relative = file.relative_to(folder).as_posix()
         for entry in (manifest.get("members") or {}).values():

@@ -1,4 +1,4 @@
-"""Populations built once and shipped like the pools (SPEC §5): generation 0 of a run, its
+"""Populations built once and shipped like the pools (contract §5): generation 0 of a run, its
 files hashed in a manifest, adopted by any run whose layout it fits.
 
     pools/populations/<name>/
@@ -14,7 +14,7 @@ The folder is laid out as a run directory's generation 0, so a run adopts it as 
 a sibling trial's (`RunDir.adopt_generation_zero`). Loading (`load`) verifies every file's
 hash, refuses a population whose layout differs from the run's, one built by another
 kind of pre-training than the run's method uses, and one that shares a file with a pool.
-Building it is `python -m hola_ray.populations` (`hola_ray/populations.py`).
+Building it is `python -m hola_ray populations` (`hola_ray/commands/populations.py`).
 """
 
 from __future__ import annotations
@@ -55,14 +55,9 @@ def population_dir(
         text = re.sub(r"\{seed%(\d+)\}", lambda m: str(seed % int(m[1])), text)
     if kind is not None and "{kind}" in text:
         text = text.replace("{kind}", kind)
-    for folder in (POPULATIONS_DIR / text, Path(text)):
-        if (folder / MANIFEST).is_file():
-            return folder
-    known = names()
-    raise PopulationError(
-        f"no shipped population {text!r}: give one of {', '.join(known) or '(none built)'} "
-        f"or a folder with a {MANIFEST} (build one with python -m hola_ray.populations build)"
-    )
+    known = {name: POPULATIONS_DIR / name for name in names()}
+    hint = " (build one with python -m hola_ray populations build)"
+    return homes.artefact_dir(text, known, "no shipped population", PopulationError, hint)
 
 
 def names() -> list[str]:
@@ -128,7 +123,7 @@ def package(
 
 
 def read(folder: Path) -> dict[str, Any]:
-    missing = f"not a shipped population (python -m hola_ray.populations build {folder.name})"
+    missing = f"not a shipped population (python -m hola_ray populations build {folder.name})"
     return homes.read_manifest(folder, FORMAT, PopulationError, missing)
 
 
