@@ -8,6 +8,8 @@ import sys
 from types import ModuleType
 from typing import Any, NoReturn
 
+from hola_ray.third_party import lean_local_ray
+
 NOISY_LOGGERS = (
     "ray._common.deprecation",  # RLlib's own RLModuleConfig deprecation, once per env runner
     "ray.rllib.algorithms.algorithm_config",  # "You are running PPO on the new API stack!"
@@ -38,66 +40,6 @@ def worker_runtime_env(local: bool = True) -> dict[str, Any] | None:
     if local and os.environ.get("PYTHONHASHSEED") is not None:
         return None
     return RAY_RUNTIME_ENV
-
-
-RAY_VERSION = "2.60.0"
-"""the Ray whose start `lean_local_ray` was read from; another keeps its own"""
-
-LEAN_LOCAL_RAY = {"dashboard_agent_listen_port": 0, "no_monitor": True}
-"""What a local Ray of this project starts differently from Ray 2.60's defaults (`RayParams`
-fields; `ray.init` takes neither):
-
-- `dashboard_agent_listen_port` 0: the dashboard agent's HTTP server on a port the system
-  picks, not the fixed 52365. With a second Ray on the machine (the suite's two workers, a
-  command beside a run or a population build) the fixed port is taken: the agent retries it
-  through its back-offs and gives up, and the raylet waits for the agent before it
-  registers, so every such `ray.init` waits for nothing and runs without the agent's server
-  (Ray Jobs). 0 is Ray's own "any free port": the agent records the port it bound where
-  the dashboard looks it up.
-- `no_monitor`: no autoscaler monitor, a process that only drives an autoscaler, which a
-  local Ray has none of (part of each start, and a poll every few seconds). A cluster's
-  nodes, started by `ray start`, keep theirs.
-
-And with `include_dashboard=False`, no dashboard head (`lean_local_ray`): Ray 2.60 starts
-one regardless, serving only its usage-stats module (usage reporting off) with its HTTP
-server off, and `ray.init` waits for it to announce itself before it starts the raylet,
-so without it a start is shorter and costs less CPU (docs/run_speed.md, "No dashboard
-head where the dashboard is off"). Nothing this project runs without the dashboard asks
-the head for anything (Ray's state API and Ray Jobs need its HTTP server, on only with
-the dashboard); the metrics a run exports (`--metrics-port`) are the dashboard agent's,
-which stays."""
-
-
-def lean_local_ray(log_monitor: bool = True) -> bool:
-    """Every local Ray this process starts from now on takes `LEAN_LOCAL_RAY`, no dashboard
-    head where the dashboard is off, and no log monitor unless `log_monitor` (the process
-    that streams the workers' output to the driver: nothing to stream where `log_to_driver`
-    is off); True when that is in place."""
-    import ray
-    from ray._private import node, parameter
-
-    if ray.__version__ != RAY_VERSION:
-        return False
-    init = getattr(parameter.RayParams.__init__, "_ray_default", parameter.RayParams.__init__)
-    lean = {**LEAN_LOCAL_RAY, "include_log_monitor": log_monitor}
-
-    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
-        init(self, *args, **{**lean, **kwargs})
-
-    __init__._ray_default = init  # type: ignore[attr-defined]
-    parameter.RayParams.__init__ = __init__
-
-    api = getattr(node.Node.start_api_server, "_ray_default", node.Node.start_api_server)
-
-    def start_api_server(self: Any, *, include_dashboard: bool | None, **kwargs: Any) -> None:
-        if include_dashboard is False:  # no head: what Ray's own says without its server
-            self._webui_url = ""
-            return
-        api(self, include_dashboard=include_dashboard, **kwargs)
-
-    start_api_server._ray_default = api  # type: ignore[attr-defined]
-    node.Node.start_api_server = start_api_server
-    return True
 
 
 def init_local_ray(**options: Any) -> None:

@@ -56,7 +56,8 @@ def ray_session():
     """One local Ray per test module (start-up and per-actor torch imports cost seconds)."""
     import ray
 
-    from hola_ray.process import lean_local_ray, worker_runtime_env
+    from hola_ray.process import worker_runtime_env
+    from hola_ray.third_party import lean_local_ray
 
     lean_local_ray(log_monitor=False)  # as the commands', and nothing to stream to the driver
     ray.init(

@@ -21,7 +21,8 @@ from ray.cluster_utils import Cluster
 
 from hola_ray.experiment import Experiment, Runner
 from hola_ray.population.rundir import RunDir
-from hola_ray.process import lean_local_ray, worker_runtime_env
+from hola_ray.process import worker_runtime_env
+from hola_ray.third_party import lean_local_ray
 
 ROOT = Path(__file__).resolve().parent.parent
 

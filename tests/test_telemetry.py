@@ -11,11 +11,11 @@ import urllib.request
 import pytest
 import yaml
 
+from hola_ray.homes import ROOT
 from hola_ray.methods.config import RunConfig
 from hola_ray.methods.trainer import Trainer
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.telemetry import SERIES
-from tests.conftest import ROOT
 
 SMOKE = ROOT / "configs" / "smoke.yaml"
 pytestmark = pytest.mark.ray  # its own Ray, with the dashboard
@@ -97,7 +97,7 @@ def test_a_local_ray_is_lean_and_serves_its_agent_on_a_free_port(watched):
     from ray.dashboard import consts
     from ray.experimental.internal_kv import _internal_kv_get
 
-    from hola_ray.process import LEAN_LOCAL_RAY, lean_local_ray
+    from hola_ray.third_party import LEAN_LOCAL_RAY, lean_local_ray
 
     assert lean_local_ray()  # in place, and a second call keeps Ray's own underneath
     assert RayParams().dashboard_agent_listen_port == 0

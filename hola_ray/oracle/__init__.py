@@ -1,5 +1,5 @@
-"""The Oracle: RLlib multi-agent PPO whose partner mapping follows φ (SPEC §5). Building
-one applies `hola_ray.rllib_fixes` in the driver and in each of its env runners.
+"""The Oracle: RLlib multi-agent PPO whose partner mapping follows φ (docs/contract.md §5). Building
+one applies RLlib's fixes (`hola_ray.third_party`) in the driver and in each of its env runners.
 
 `Oracle` is imported from `trainer` on first use, so that reading a run
 config (`hola_ray.oracle.config`) does not import RLlib: a command validates its config

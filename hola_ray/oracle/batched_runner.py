@@ -53,7 +53,7 @@ from ray.rllib.utils.metrics import (
     WEIGHTS_SEQ_NO,
 )
 
-from hola_ray import rllib_fixes
+from hola_ray import third_party
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitPPOModule
 from hola_ray.policies.learned import MLPPolicy, MLPStack, export_from_rllib
@@ -83,7 +83,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
 
     def __init__(self, config, **kwargs) -> None:
         quiet_ray_noise()  # before RLlib builds the modules (its deprecation warnings)
-        rllib_fixes.apply()  # before it builds its connectors and seeds torch
+        third_party.apply_rllib()  # before it builds its connectors and seeds torch
         super().__init__(config=config, **kwargs)
         if self.worker_index > 0 or self.config.num_env_runners == 0:
             # a remote runner, or the driver's own where it samples (`oracle.env_runners: 0`):

@@ -2,7 +2,7 @@
 
     python -m hola_ray.oracle.d3qn_train configs/pools/d3qn-g-1.yaml runs/pools/d3qn-g-1
 
-`python -m hola_ray.pools build --pool het` calls `train_d3qn` for each D3QN-G member; a
+`python -m hola_ray pools build --pool het` calls `train_d3qn` for each D3QN-G member; a
 finished run directory (its `export.pt`) is reused, never retrained.
 """
 
@@ -282,9 +282,9 @@ def algorithm_config(run: D3QNRun):
 def build(run: D3QNRun):
     """RLlib's DQN for `run`, every random draw seeded from the run's seed: RLlib seeds its
     env runners and learner, but its replay buffer draws from an unseeded generator."""
-    from hola_ray import rllib_fixes
+    from hola_ray import third_party
 
-    rllib_fixes.apply()
+    third_party.apply_rllib()
     algo = algorithm_config(run).build_algo()
     algo.local_replay_buffer.rng = np.random.default_rng(run.seed)
     return algo

@@ -403,11 +403,11 @@ class OracleLearner(ModuleTraining, PPOTorchLearner):
         )
 
     def build(self) -> None:
-        from hola_ray import rllib_fixes
+        from hola_ray import third_party
         from hola_ray.process import pin_threads, quiet_ray_noise
 
         quiet_ray_noise()  # a remote learner's process: before RLlib builds its modules
-        rllib_fixes.apply()  # and its connectors (a no-op where the Oracle applied them)
+        third_party.apply_rllib()  # and its connectors (a no-op where the Oracle applied them)
         super().build()
         extra = self.config.learner_config_dict
         self._lean = extra.get("update", "lean") == "lean"

@@ -1,4 +1,4 @@
-"""The Oracle: RLlib multi-agent PPO (new API stack) over the pursuit arena (SPEC §5).
+"""The Oracle: RLlib multi-agent PPO (new API stack) over the pursuit arena (docs/contract.md §5).
 
 One algorithm holds a trained module for the learner and a frozen module per population
 slot. A stateful `PartnerMapping` puts the learner in a random pursuer slot and draws the
@@ -29,7 +29,7 @@ from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
 from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, NUM_ENV_STEPS_SAMPLED_LIFETIME
 from ray.tune.registry import register_env
 
-from hola_ray import interrupt, rllib_fixes
+from hola_ray import interrupt, third_party
 from hola_ray.env.config import PursuitConfig
 from hola_ray.env.horizon import horizon_is_truncation
 from hola_ray.env.pettingzoo_env import PursuitEnv
@@ -104,7 +104,7 @@ class Oracle:
     self-play method, the learner alone in every slot)."""
 
     def __init__(self, env: PursuitConfig, config: OracleConfig, seating: Seating, seed: int):
-        rllib_fixes.apply()  # before RLlib builds its connectors and seeds torch
+        third_party.apply_rllib()  # before RLlib builds its connectors and seeds torch
         self.env, self.config, self.seating, self.seed = env, config, seating, seed
         self.mep = seating.mep
         n_p = env.n_pursuers

@@ -80,16 +80,16 @@ def test_a_local_ray_without_the_dashboard_starts_no_dashboard_head(oracle):
 
 
 def test_building_an_oracle_applies_the_rllib_fixes_in_its_processes(oracle):
-    """`rllib_fixes.apply()` is called where the Oracle builds RLlib's parts, not by an
+    """`third_party.apply_rllib()` is called where the Oracle builds RLlib's parts, not by an
     import: in the driver and in every env runner (each its own process) both fixes are in
     place, and no env runner loaded the inductor. (The driver's learner has: torch's Adam
     imports `torch._dynamo`, and with it the inductor's config, at its first call.)"""
-    from hola_ray import rllib_fixes
+    from hola_ray import third_party
 
-    here = rllib_fixes.in_place()
+    here = third_party.rllib_in_place()
     assert here["fast_connectors"] and here["light_seeding"], here
     runners = oracle.algo.env_runner_group.foreach_env_runner(
-        lambda runner: rllib_fixes.in_place(), local_env_runner=False
+        lambda runner: third_party.rllib_in_place(), local_env_runner=False
     )
     fixed = {"fast_connectors": True, "light_seeding": True, "inductor_loaded": False}
     assert runners and all(r == fixed for r in runners), runners

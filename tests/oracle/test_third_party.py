@@ -1,6 +1,6 @@
-"""`hola_ray.rllib_fixes`: RLlib's connectors record the same constructor arguments with
-the fast frame lookup as with RLlib's own `inspect.stack`, and a pipeline rebuilt from
-them is the same."""
+"""RLlib's fixes in `hola_ray.third_party`: RLlib's connectors record the same constructor
+arguments with the fast frame lookup as with RLlib's own `inspect.stack`, and a pipeline
+rebuilt from them is the same."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from ray.rllib.connectors.connector_v2 import ConnectorV2
 from ray.rllib.connectors.learner.general_advantage_estimation import GeneralAdvantageEstimation
 
 from hola_ray.oracle.connectors import DropFrozenModules, PopulationEntropyBonus
-from hola_ray.rllib_fixes import RLLIB_VERSION, fast_connectors
+from hola_ray.third_party import RLLIB_VERSION, fast_connectors
 
 
 class Plain(ConnectorV2):
@@ -65,7 +65,7 @@ def test_fast_connectors_record_what_rllibs_own_init_records():
 SEEDED = """
 import sys, json, torch
 from ray.rllib.utils.debug import deterministic, update_global_seed_if_necessary
-from hola_ray.rllib_fixes import light_seeding
+from hola_ray.third_party import light_seeding
 
 def seeded():
     update_global_seed_if_necessary("torch", 1234)

@@ -1,4 +1,15 @@
-"""Fixes of RLlib 2.60 in this process that change what it costs, never what it computes.
+"""Fixes of Ray 2.60 and RLlib 2.60 in this process, all in this one module: each changes
+what its library costs, never what it computes; each is applied by an explicit call, none
+by an import; and each leaves a version of its library other than the one it was read from
+alone.
+
+Ray, `lean_local_ray`: a local Ray started without what a local Ray of this project never
+uses (`LEAN_LOCAL_RAY`: the dashboard agent on a fixed port, the autoscaler monitor; the
+dashboard head where the dashboard is off; the log monitor where nothing streams to the
+driver). Called by `hola_ray.process` before each start of a local Ray, and by the suite's
+own starts.
+
+RLlib, `apply_rllib`: its two fixes, called where RLlib's parts are built.
 
 `fast_connectors`: RLlib's `ConnectorV2.__init__` records its subclass's constructor
 arguments (for `get_ctor_args_and_kwargs`, to rebuild a pipeline from a checkpoint) by
@@ -8,7 +19,7 @@ reading its caller's frame with `inspect.stack()[1].frame`. `inspect.stack` buil
 per connector here, and an algorithm builds 20–30 connectors (its learner pipeline and
 each env runner's two), so 3–6 s per Oracle built, in the driver and in every env runner.
 The frame it reads is `sys._getframe(1)` of the same call: replaced here by that, with the
-same recorded arguments (tested against RLlib's own in tests/oracle/test_rllib_fixes.py).
+same recorded arguments (tested against RLlib's own in tests/oracle/test_third_party.py).
 
 `light_seeding`: RLlib seeds torch in every algorithm, learner and env runner
 (`update_global_seed_if_necessary` → `set_torch_seed`), which calls
@@ -18,17 +29,18 @@ that `torch.compile`'s inductor reads. The fix sets the same eager-mode flag
 (`torch._C._set_deterministic_algorithms`) and the inductor's flag only when the inductor
 is loaded already; what the eager ops compute is the same (tested in the same file).
 
-Applied by an explicit call, `apply()`, where RLlib's parts are built: the Oracle
+`apply_rllib()` is called where RLlib's parts are built: the Oracle
 (`hola_ray.oracle.trainer.Oracle`), each of its env runners (`BatchedEnvRunner`) and the
-D3QN trainer; once per process (a second call finds them in place). RLlib other than the
-version they were written for is left alone. The report for Ray's maintainers is in
-docs/packages.md ("Two fixes of RLlib 2.60").
+D3QN trainer; once per process (a second call finds them in place). The report for Ray's
+maintainers is in docs/packages.md ("Two fixes of RLlib 2.60").
 """
 
 from __future__ import annotations
 
 import sys
+from typing import Any
 
+# ---- RLlib ------------------------------------------------------------------------------------
 RLLIB_VERSION = "2.60.0"
 """the RLlib these fixes were read from; another version keeps its own code"""
 
@@ -110,13 +122,14 @@ def light_seeding() -> bool:
     return True
 
 
-def apply() -> dict[str, bool]:
-    """Both fixes in this process; which are in place (False: another RLlib version)."""
+def apply_rllib() -> dict[str, bool]:
+    """Both of RLlib's fixes in this process; which are in place (False: another RLlib
+    version)."""
     return {"fast_connectors": fast_connectors(), "light_seeding": light_seeding()}
 
 
-def in_place() -> dict[str, bool]:
-    """Which fixes this process has, and whether it loaded torch's inductor."""
+def rllib_in_place() -> dict[str, bool]:
+    """Which of RLlib's fixes this process has, and whether it loaded torch's inductor."""
     from ray.rllib.connectors.connector_v2 import ConnectorV2
     from ray.rllib.utils.debug import deterministic
 
@@ -125,3 +138,64 @@ def in_place() -> dict[str, bool]:
         "light_seeding": getattr(deterministic.set_torch_seed, "_light", False),
         "inductor_loaded": "torch._inductor.config" in sys.modules,
     }
+
+
+# ---- Ray ---------------------------------------------------------------------------------------
+RAY_VERSION = "2.60.0"
+"""the Ray whose start `lean_local_ray` was read from; another keeps its own"""
+
+LEAN_LOCAL_RAY = {"dashboard_agent_listen_port": 0, "no_monitor": True}
+"""What a local Ray of this project starts differently from Ray 2.60's defaults (`RayParams`
+fields; `ray.init` takes neither):
+
+- `dashboard_agent_listen_port` 0: the dashboard agent's HTTP server on a port the system
+  picks, not the fixed 52365. With a second Ray on the machine (the suite's two workers, a
+  command beside a run or a population build) the fixed port is taken: the agent retries it
+  through its back-offs and gives up, and the raylet waits for the agent before it
+  registers, so every such `ray.init` waits for nothing and runs without the agent's server
+  (Ray Jobs). 0 is Ray's own "any free port": the agent records the port it bound where
+  the dashboard looks it up.
+- `no_monitor`: no autoscaler monitor, a process that only drives an autoscaler, which a
+  local Ray has none of (part of each start, and a poll every few seconds). A cluster's
+  nodes, started by `ray start`, keep theirs.
+
+And with `include_dashboard=False`, no dashboard head (`lean_local_ray`): Ray 2.60 starts
+one regardless, serving only its usage-stats module (usage reporting off) with its HTTP
+server off, and `ray.init` waits for it to announce itself before it starts the raylet,
+so without it a start is shorter and costs less CPU (results/NOTEBOOK.md, "No dashboard
+head where the dashboard is off"). Nothing this project runs without the dashboard asks
+the head for anything (Ray's state API and Ray Jobs need its HTTP server, on only with
+the dashboard); the metrics a run exports (`--metrics-port`) are the dashboard agent's,
+which stays."""
+
+
+def lean_local_ray(log_monitor: bool = True) -> bool:
+    """Every local Ray this process starts from now on takes `LEAN_LOCAL_RAY`, no dashboard
+    head where the dashboard is off, and no log monitor unless `log_monitor` (the process
+    that streams the workers' output to the driver: nothing to stream where `log_to_driver`
+    is off); True when that is in place."""
+    import ray
+    from ray._private import node, parameter
+
+    if ray.__version__ != RAY_VERSION:
+        return False
+    init = getattr(parameter.RayParams.__init__, "_ray_default", parameter.RayParams.__init__)
+    lean = {**LEAN_LOCAL_RAY, "include_log_monitor": log_monitor}
+
+    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
+        init(self, *args, **{**lean, **kwargs})
+
+    __init__._ray_default = init  # type: ignore[attr-defined]
+    parameter.RayParams.__init__ = __init__
+
+    api = getattr(node.Node.start_api_server, "_ray_default", node.Node.start_api_server)
+
+    def start_api_server(self: Any, *, include_dashboard: bool | None, **kwargs: Any) -> None:
+        if include_dashboard is False:  # no head: what Ray's own says without its server
+            self._webui_url = ""
+            return
+        api(self, include_dashboard=include_dashboard, **kwargs)
+
+    start_api_server._ray_default = api  # type: ignore[attr-defined]
+    node.Node.start_api_server = start_api_server
+    return True
