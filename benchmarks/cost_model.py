@@ -5,7 +5,7 @@
         [--node-cpus 16] [--nodes 1 5] [--out FILE]
 
 Each RUN_DIR is a run (or an experiment's trial) measured on this machine; `--calib` is
-`../shared/calib.py`'s scale of the machine it ran on (the reference machine's seconds ÷
+`benchmarks/calib.py`'s scale of the machine it ran on (the reference machine's seconds ÷
 this machine's, for the same work), so every figure below is in reference-machine seconds.
 From the runs' `metrics.csv` the model reads, per run: generation 0's wall time, its
 pre-training's time and env steps, and the mean wall time and Oracle time of a generation

@@ -148,8 +148,8 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         team = [learner, *mates]
         if args.flown:
+            from hola_ray.commands.fly import kinematic
             from hola_ray.flight import Crazyflies
-            from hola_ray.fly import kinematic
 
             config = kinematic(config)  # the arena column plays the paper's kinematics
             played = {

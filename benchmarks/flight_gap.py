@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
+from hola_ray.commands.export import resolve
+from hola_ray.commands.fly import columns
+from hola_ray.commands.replay import resolve as by_name
 from hola_ray.evaluation.pools import MEMBERS
-from hola_ray.export import resolve
 from hola_ray.flight.guard import Guard
-from hola_ray.fly import columns
-from hola_ray.replay import resolve as by_name
 
 HAND = ("greedy", "vicsek")
 

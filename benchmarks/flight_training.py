@@ -24,10 +24,10 @@ import sys
 
 import numpy as np
 
+from hola_ray.commands.fly import columns
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.pools import validation_mates
 from hola_ray.flight import Guard
-from hola_ray.fly import columns
 from hola_ray.policies.learned import MLPPolicy
 from hola_ray.policies.registry import make_policy
 

@@ -104,8 +104,8 @@ def main(argv: list[str] | None = None) -> dict:
 
     import ray
 
+    from hola_ray.commands.run import read_config
     from hola_ray.process import init_ray
-    from hola_ray.run import read_config
 
     config = read_config(args.config, args.sets)
     init_ray("oracle_speed", num_cpus=2)

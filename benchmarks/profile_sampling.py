@@ -1,6 +1,7 @@
 """Where an Oracle env runner's sampling time goes: cProfile inside the env runner actor.
 
     python benchmarks/profile_sampling.py [--steps 40000] [--top 14] [--sampler batched]
+                                          [--config FILE] [--set section.field=value ...]
 
 For each `oracle.sampler` (batched, pettingzoo) the default run's Oracle is built, warmed
 up with one training iteration, and then the remote env runner profiles its own
@@ -18,12 +19,12 @@ import dataclasses
 import json
 import pstats
 import time
+from pathlib import Path
 
 import ray
 
 from hola_ray.homes import ROOT
-from hola_ray.methods.config import SAMPLERS, RunConfig
-from hola_ray.run import DEFAULT
+from hola_ray.methods.config import SAMPLERS
 
 
 def profile_runner(runner, steps: int, top: int) -> dict:
@@ -55,14 +56,18 @@ def profile_runner(runner, steps: int, top: int) -> dict:
     return {"env_steps": done, "wall_s": wall, "rows": rows}
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    from hola_ray.commands.run import read_config
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=40_000)
     parser.add_argument("--top", type=int, default=14)
     parser.add_argument("--sampler", choices=SAMPLERS, help="profile only this sampler")
-    args = parser.parse_args()
+    parser.add_argument("--config", type=Path, help="a run config (default: the embedded one)")
+    parser.add_argument("--set", action="append", default=[], dest="sets")
+    args = parser.parse_args(argv)
     ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
-    default = RunConfig.from_dict(DEFAULT)
+    default = read_config(args.config, args.sets)
     summary = {}
     for sampler in [args.sampler] if args.sampler else SAMPLERS:
         config = dataclasses.replace(

@@ -12,7 +12,7 @@ beside partners as the run's is (`benchmarks/oracle_speed.py --seatings partners
 run's per-generation budget of learner transitions after a warm-up iteration). The ratio
 (learner transitions per wall-second of the whole run ÷ the Oracle's own rate) says how
 much of the run's time goes to learning. Each version first plays the smoke config once,
-so numba's kernels are compiled before anything is timed. `../shared/calib.py` runs before
+so numba's kernels are compiled before anything is timed. `benchmarks/calib.py` runs before
 and after; prints one JSON line per measurement and a summary line last.
 """
 
@@ -33,9 +33,9 @@ ROOT = Path(__file__).resolve().parents[1]
 T975 = (float("nan"), 12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262)
 
 
-def calibrate() -> float:
+def calibrate(best_of: int = 5) -> float:
     out = subprocess.run(
-        [sys.executable, str(ROOT.parent / "shared" / "calib.py")],
+        [sys.executable, str(ROOT / "benchmarks" / "calib.py"), "--best-of", str(best_of)],
         capture_output=True,
         text=True,
         check=True,
@@ -43,9 +43,11 @@ def calibrate() -> float:
     return float(json.loads(out.stdout.strip().splitlines()[-1])["scale"])
 
 
-def whole_run(tree: Path, out: Path, sets: list[str]) -> dict:
+def whole_run(tree: Path, out: Path, sets: list[str], config: Path | None = None) -> dict:
     """`python -m hola_ray.run` of `tree`'s code, from launch to exit."""
     command = [sys.executable, "-m", "hola_ray.run", "--out", str(out), "--quiet"]
+    if config is not None:
+        command += ["--config", str(config)]
     for s in sets:
         command += ["--set", s]
     start = time.perf_counter()
@@ -58,7 +60,7 @@ def whole_run(tree: Path, out: Path, sets: list[str]) -> dict:
     return {"wall_s": round(wall, 1), "learner_samples": samples, "per_s": samples / wall}
 
 
-def oracle_alone(tree: Path, samples: int, sets: list[str]) -> float:
+def oracle_alone(tree: Path, samples: int, sets: list[str], config: Path | None = None) -> float:
     """The Oracle beside partners, learner transitions per second (`oracle_speed.py`)."""
     command = [
         sys.executable,
@@ -72,6 +74,8 @@ def oracle_alone(tree: Path, samples: int, sets: list[str]) -> float:
         "--against",
         "oracle.overlap=true,true",
     ]
+    if config is not None:
+        command += ["--config", str(config)]
     for s in sets:
         command += ["--set", s]
     # the tree's own package, not the one installed in the venv (a script's folder, not
@@ -111,6 +115,9 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--samples", type=int, default=100_000, help="the Oracle alone's budget")
     parser.add_argument("--set", action="append", default=[], dest="sets")
     parser.add_argument("--out", type=Path, help="where the runs go (default: a temp folder)")
+    parser.add_argument("--config", type=Path, help="a run config (default: the embedded one)")
+    parser.add_argument("--no-warm", action="store_true", help="no smoke run first")
+    parser.add_argument("--calib-best-of", type=int, default=5, help="calib.py's --best-of")
     args = parser.parse_args(argv)
     scratch = args.out or Path(tempfile.mkdtemp(prefix="run_speed-"))
     scratch.mkdir(parents=True, exist_ok=True)
@@ -125,14 +132,14 @@ def main(argv: list[str] | None = None) -> dict:
                 capture_output=True,
             )
         trees = {"before": before, "after": ROOT}
-    scales = [calibrate()]
-    for tree in trees.values():
+    scales = [calibrate(args.calib_best_of)]
+    for tree in trees.values() if not args.no_warm else ():
         warm(tree, scratch)
     rows = []
     for repeat in range(args.repeats):
         for label, tree in trees.items():
-            run = whole_run(tree, scratch / f"{label}-{repeat}", args.sets)
-            alone = oracle_alone(tree, args.samples, args.sets)
+            run = whole_run(tree, scratch / f"{label}-{repeat}", args.sets, args.config)
+            alone = oracle_alone(tree, args.samples, args.sets, args.config)
             rows.append(
                 {
                     "code": label,
@@ -143,7 +150,7 @@ def main(argv: list[str] | None = None) -> dict:
                 }
             )
             print(json.dumps(rows[-1]), flush=True)
-    scales.append(calibrate())
+    scales.append(calibrate(args.calib_best_of))
     summary: dict = {"repeats": args.repeats, "sets": args.sets, "calib_scale": scales}
     for label in trees:
         mine = [r for r in rows if r["code"] == label]

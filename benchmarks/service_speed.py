@@ -1,6 +1,6 @@
 """Speed of the training service's parts on this machine, each against a peer in the same run.
 
-    python benchmarks/service_speed.py [--quick]
+    python benchmarks/service_speed.py [--quick | --smoke]
 
 1. Grapher: hyperedge-evaluation episodes/s with 1 and 2 workers (evaluation actors side
    by side, the hyperedges in two chunks) on the same hyperedges and seeds → the speedup
@@ -32,12 +32,12 @@ import ray
 import torch
 
 from hola_ray.clock import column
+from hola_ray.commands.run import DEFAULT
 from hola_ray.methods.config import SAMPLERS, RunConfig
 from hola_ray.policies.learned import FORMAT
 from hola_ray.population.evaluators import EvaluatorPool
 from hola_ray.population.grapher import evaluate_edges
 from hola_ray.population.state import edge_seed
-from hola_ray.run import DEFAULT
 
 
 def random_export(obs_dim: int, hidden: tuple[int, ...], seed: int) -> dict:
@@ -75,7 +75,9 @@ def machine_scaling(rounds: int, n: int = 20_000_000) -> float:
     return 2 * statistics.median(ones) / statistics.median(twos)
 
 
-def grapher_speed(config: RunConfig, members: int, episodes: int, rounds: int) -> dict[str, float]:
+def grapher_speed(
+    config: RunConfig, members: int, episodes: int, rounds: int, spin: int = 20_000_000
+) -> dict[str, float]:
     """1 and 2 workers on the same hyperedges and seeds, alternated `rounds` times (this
     machine's two cores are shared and their speed drifts); medians are reported."""
     env = config.env
@@ -118,7 +120,7 @@ def grapher_speed(config: RunConfig, members: int, episodes: int, rounds: int) -
     out["grapher_speedup_2w_over_1w"] = (
         out["grapher_episodes_per_s_2w"] / out["grapher_episodes_per_s_1w"]
     )
-    out["machine_scaling_2p_over_1p"] = machine_scaling(rounds)
+    out["machine_scaling_2p_over_1p"] = machine_scaling(rounds, spin)
     print(
         f"  → speedup 2 workers / 1 worker: {out['grapher_speedup_2w_over_1w']:.2f}× "
         f"(this machine now, a pure Python loop in 2 processes / 1, median of {rounds}: "
@@ -167,21 +169,30 @@ def generation_breakdown(config: RunConfig) -> dict[str, float]:
     return parts
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smaller measurements")
-    args = parser.parse_args()
+    parser.add_argument(
+        "--smoke", action="store_true", help="tiny sizes on the smoke config (the suite's run)"
+    )
+    args = parser.parse_args(argv)
     ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
+    configs = Path(__file__).resolve().parents[1] / "configs"
     default = RunConfig.from_dict(DEFAULT)
-    paper = RunConfig.from_yaml(Path(__file__).resolve().parents[1] / "configs" / "paper.yaml")
+    paper = RunConfig.from_yaml(configs / "paper.yaml")
     steps = 10_000 if args.quick else 40_000
+    if args.smoke:  # every part runs; its figures mean nothing
+        default = paper = RunConfig.from_yaml(configs / "smoke.yaml")
+        steps = 1_000
     print("Grapher (default networks, full-length episodes):")
-    if args.quick:
+    if args.smoke:
+        grapher = grapher_speed(default, members=3, episodes=2, rounds=1, spin=100_000)
+    elif args.quick:
         grapher = grapher_speed(default, members=5, episodes=16, rounds=1)
     else:
         grapher = grapher_speed(default, members=6, episodes=32, rounds=3)
     print("Oracle:")
-    paper_steps = steps // 2 if args.quick else steps
+    paper_steps = steps // 2 if args.quick or args.smoke else steps
     oracle = {}
     for sampler in SAMPLERS:
         oracle.update(oracle_speed(default, "default", steps, sampler))

@@ -11,7 +11,7 @@ Self-play (the default, `configs/sp.yaml`: 3 pursuers vs 1 evader) trains in chu
 other policy of the project is played (`MLPPolicy`, its deterministic action), is judged
 offline on `--episodes` episodes (seeds no training evaluation uses) as a team of its own
 copies. The run ends when the team is competent twice in a row (success ≥ 85 %, collision
-≤ 15 %; SPEC's 3 vs 2 bar is `--success 0.6 --collision 0.35`) or at `--max-env-steps`.
+≤ 15 %; the contract's 3 vs 2 bar is `--success 0.6 --collision 0.35`) or at `--max-env-steps`.
 Only the Oracle's `train` counts as training time; the
 judging, the exports and the start-up (Ray, the algorithm's build) do not, and are reported
 apart.
@@ -29,7 +29,7 @@ Beside the training the same run measures two peers:
   same number of rows, minibatches and epochs as one of the run's PPO iterations, Adam and
   the global-norm clip; seconds per iteration beside the Oracle's own.
 
-`../shared/calib.py` gives this machine's speed against the reference machine; the JSON
+`benchmarks/calib.py` gives this machine's speed against the reference machine; the JSON
 reports minutes as measured and scaled by it: by `--scale`, or by the mean of calib run
 before and after the training (this machine's speed drifts by tens of percent within an
 hour).
@@ -60,8 +60,8 @@ SUCCESS, COLLISION = 0.85, 0.15
 
 
 def calibrate() -> float:
-    """This machine's scale to the reference machine (`../shared/calib.py`)."""
-    calib = ROOT.parent / "shared" / "calib.py"
+    """This machine's scale to the reference machine (`benchmarks/calib.py`)."""
+    calib = ROOT / "benchmarks" / "calib.py"
     out = subprocess.run([sys.executable, str(calib)], capture_output=True, text=True, check=True)
     return float(json.loads(out.stdout.strip().splitlines()[-1])["scale"])
 
@@ -277,11 +277,11 @@ def main(argv: list[str] | None = None) -> dict:
     import ray
     import torch
 
+    from hola_ray.commands.run import read_config
     from hola_ray.oracle import LEARNER, Oracle
     from hola_ray.oracle.config import Seating
     from hola_ray.oracle.mapping import member_module
     from hola_ray.process import init_ray
-    from hola_ray.run import read_config
 
     sets = [*args.sets, f"seed={args.seed}"]
     if args.partners is not None:

@@ -218,10 +218,10 @@ def main(argv: list[str] | None = None) -> dict:
 
     import torch
 
+    from hola_ray.commands.run import read_config
     from hola_ray.oracle import Oracle
     from hola_ray.oracle.config import Seating
     from hola_ray.process import init_ray
-    from hola_ray.run import read_config
 
     config = read_config(args.config, args.sets)
     obs_dim = config.env.layout.dim

@@ -39,7 +39,7 @@ def truncated(tmp_path):
     ],
 )
 def test_replay_bad_inputs(tmp_path, capsys, truncated, team, message):
-    from hola_ray.replay import main
+    from hola_ray.commands.replay import main
 
     team = [str(truncated) if t == "truncated" else t for t in team]
     assert main(["--team", *team, "--out", str(tmp_path / "r")]) == 2
@@ -47,7 +47,7 @@ def test_replay_bad_inputs(tmp_path, capsys, truncated, team, message):
 
 
 def test_replay_refuses_another_scenario_for_a_learner_in_one_line(tmp_path, capsys):
-    from hola_ray.replay import main
+    from hola_ray.commands.replay import main
 
     one = PursuitConfig(n_evaders=1)
     path = tmp_path / "one.pt"
@@ -64,7 +64,7 @@ def test_table_ii_bad_input(capsys):
 
 
 def test_pools_bad_inputs(tmp_path, capsys):
-    from hola_ray.pools import main
+    from hola_ray.commands.pools import main
 
     assert main(["show", "--pool", "nope"]) == 2
     one_line(capsys, "unknown pool 'nope'")
@@ -85,7 +85,7 @@ def test_pools_bad_inputs(tmp_path, capsys):
 
     manifest["members"]["d3qn-g-1"]["sha256"] = sha256(broken / "d3qn-g-1.pt")
     (broken / "manifest.json").write_text(json.dumps(manifest))
-    from hola_ray.evaluate import main as evaluate
+    from hola_ray.commands.evaluate import main as evaluate
 
     learner = tmp_path / "mine.pt"
     torch.save(random_export(PursuitConfig().obs_dim, hidden=(8,)), learner)
@@ -104,7 +104,8 @@ def test_an_out_that_cannot_be_created_is_one_line_naming_it(tmp_path, capsys, c
     argv = ["--out", str(out)]
     if command == "experiment":
         argv += ["--config", str(POOLS_DIR.parent / "configs" / "experiments" / "smoke.yaml")]
-    assert importlib.import_module(f"hola_ray.{command}").main(argv) == 2
+    module = {"run": "hola_ray.commands.run", "experiment": "hola_ray.experiment"}[command]
+    assert importlib.import_module(module).main(argv) == 2
     one_line(capsys, f"--out {out} cannot be created: Not a directory")
 
 
@@ -116,9 +117,9 @@ def test_a_bad_or_taken_metrics_port_is_one_line_before_ray_starts(
     wait about 30 s for its metrics agent and end in a traceback)."""
     import socket
 
+    from hola_ray.commands.run import main as run
     from hola_ray.experiment.command import main as experiment
     from hola_ray.homes import ROOT
-    from hola_ray.run import main as run
 
     monkeypatch.delenv("RAY_ADDRESS", raising=False)
     main, args = {

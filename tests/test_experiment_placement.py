@@ -81,7 +81,7 @@ def stand_in(meet: int, until_one_waits: bool = False):
                     ray.get_runtime_context().get_node_id(),
                 )
 
-        runners = [EnvRunner.remote() for _ in range(config["oracle"]["env_runners"])]
+        runners = [EnvRunner.remote() for _ in range(config.oracle.env_runners)]
         member = Member.remote()
         root = Path(run_dir)
         root.mkdir(parents=True)

@@ -205,8 +205,8 @@ def test_a_pool_file_by_its_path_plays_in_the_scenario_its_manifest_names(tmp_pa
     its manifest is still refused in one line."""
     import shutil
 
+    from hola_ray.commands.export import resolve
     from hola_ray.evaluation.pools import POOLS_DIR
-    from hola_ray.export import resolve
     from hola_ray.policies.registry import trained_scenario
 
     hot = POOLS_DIR / "hot" / "ppo-1.pt"

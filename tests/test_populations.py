@@ -9,17 +9,17 @@ import shutil
 
 import pytest
 
+from hola_ray.commands.populations import team_figures
+from hola_ray.commands.run import DEFAULT
 from hola_ray.methods.config import RunConfig
 from hola_ray.population import shipped
-from hola_ray.populations import team_figures
-from hola_ray.run import DEFAULT
 
 SHIPPED = shipped.names()
 PARTNERS = [n for n in SHIPPED if not n.startswith("start-")]
 """the partner populations; `start-*` are common starts, not partners: one is
-below SPEC's bar on purpose (start-3v2-early, so that learners have room to move)"""
+below the contract's bar on purpose (start-3v2-early, so that learners have room to move)"""
 GOALS = {"3v1": (0.85, 0.15), "3v2": (0.60, 0.35)}
-"""SPEC's bar for a shipped member as a team of its own copies: success ≥, collision ≤"""
+"""the contract's bar for a shipped member as a team of its own copies: success ≥, collision ≤"""
 BELOW_THE_COLLISION_BAR = ("-pilots", "-laptop")
 """populations shipped on, under a new name, as what earlier experiments trained beside"""
 
@@ -37,7 +37,7 @@ def test_the_default_run_adopts_a_shipped_population_that_fits_it():
 @pytest.mark.parametrize("name", PARTNERS)
 def test_every_shipped_member_pursues_as_a_team_of_its_copies(name):
     """The success bar for a shipped member as copies (≥ 85 % at 3 vs 1, ≥ 60 % at
-    3 vs 2) on ≥ 300 recorded episodes, and SPEC's collision bar (≤ 15 %, ≤ 35 %)
+    3 vs 2) on ≥ 300 recorded episodes, and the contract's collision bar (≤ 15 %, ≤ 35 %)
     but in the two populations shipped below it as what was trained beside them
     (`mep-3v2-s0-pilots`, the pilots'; `mep-3v1-s0-laptop`, the comparison at competence's,
     whose members collide in 17–23 %: docs/populations.md)."""
@@ -110,7 +110,7 @@ def test_a_carried_check_outlasts_its_machine(tmp_path, monkeypatch):
 
     import numpy as np
 
-    from hola_ray import populations
+    from hola_ray.commands import populations
     from hola_ray.population.rundir import RunDir
 
     monkeypatch.setattr(populations, "BUILDS", tmp_path / "builds")
@@ -151,9 +151,9 @@ def test_a_carried_check_outlasts_its_machine(tmp_path, monkeypatch):
 
 
 def test_a_build_says_which_members_miss_specs_bar():
-    """MEP's members and FCP's end checkpoints are held to SPEC's bar, a start checkpoint is
+    """MEP's members and FCP's end checkpoints are held to the contract's bar, a start checkpoint is
     not; mep-3v2-s1's first build read 39.0 % collision for its member 0."""
-    from hola_ray.populations import below_bar
+    from hola_ray.commands.populations import below_bar
 
     figures = {
         0: {"success": 0.724, "collision": 0.390},

@@ -52,7 +52,7 @@ def test_a_command_reruns_itself_under_the_fixed_hash_seed(tmp_path):
     assert first.startswith("0 ") and first.strip().endswith("['--x', '1']")
     assert said() == first
     # the commands' modules import no torch, Ray or RLlib before they re-run themselves
-    for modules in ("hola_ray.run", "hola_ray.experiment, hola_ray.experiment.command"):
+    for modules in ("hola_ray.commands.run", "hola_ray.experiment, hola_ray.experiment.command"):
         probe = f"import sys, {modules}; print(sorted({{'torch', 'ray'}} & set(sys.modules)))"
         cmd = [sys.executable, "-c", probe]
         out = subprocess.run(cmd, env=env, capture_output=True, text=True)

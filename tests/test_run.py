@@ -15,7 +15,7 @@ import ray
 import torch
 import yaml
 
-from hola_ray import run, status
+from hola_ray.commands import run, status
 from hola_ray.env.config import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.methods.config import RunConfig
@@ -419,9 +419,9 @@ def test_reading_a_run_config_imports_no_rllib():
 
     script = (
         "import sys\n"
-        "import hola_ray.run, hola_ray.methods.config, hola_ray.methods.monitors\n"
+        "import hola_ray.commands.run, hola_ray.methods.config, hola_ray.methods.monitors\n"
         "from hola_ray.methods.config import RunConfig\n"
-        "RunConfig.from_dict(hola_ray.run.DEFAULT)\n"
+        "RunConfig.from_dict(hola_ray.commands.run.DEFAULT)\n"
         "heavy = ('ray.rllib', 'hola_ray.oracle.trainer')\n"
         "print(sorted(m for m in sys.modules if m.startswith(heavy)))\n"
     )

@@ -33,3 +33,25 @@ def test_an_installed_script_runs():
         pytest.skip("the project is not installed with its scripts in this environment")
     out = subprocess.run([exe, "--help"], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and "run_dir" in out.stdout
+
+
+def test_python_m_hola_ray_names_every_command_and_runs_each():
+    """`python -m hola_ray` lists the commands; `python -m hola_ray COMMAND` is the command
+    (its --help); an unknown command is one line and exit code 2."""
+    import sys
+
+    from hola_ray.commands import COMMANDS
+
+    def run(*args):
+        cmd = [sys.executable, "-m", "hola_ray", *args]
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
+
+    listed = run()
+    assert listed.returncode == 2 and all(name in listed.stdout for name in COMMANDS)
+    assert "experiment" in listed.stdout
+    for name in COMMANDS:  # every one is a module of hola_ray.commands with a script
+        assert callable(importlib.import_module(f"hola_ray.commands.{name}").script)
+    status = run("status", "--help")
+    assert status.returncode == 0 and "python -m hola_ray status" in status.stdout
+    unknown = run("statuss")
+    assert unknown.returncode == 2 and "unknown command 'statuss'" in unknown.stderr

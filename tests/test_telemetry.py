@@ -130,7 +130,8 @@ def test_the_grafana_dashboard_plots_every_series_per_run_and_trial():
 def test_run_and_experiment_take_a_metrics_port(monkeypatch, capsys):
     """`--metrics-port PORT` reaches the Ray the command starts (`init_ray`, as the test
     above starts it)."""
-    from hola_ray import process, run
+    from hola_ray import process
+    from hola_ray.commands import run
     from hola_ray.experiment import command
 
     asked = []

@@ -1,4 +1,4 @@
-"""The pursuit arena: its config, batched core and PettingZoo face (SPEC §1–§2)."""
+"""The pursuit arena: its config, batched core and PettingZoo face (docs/contract.md §1–§2)."""
 
 from hola_ray.env.config import ConfigError, EvaderConfig, PursuitConfig
 from hola_ray.env.core import INITIAL_STATE_KEYS, BatchedPursuit, StepResult

@@ -1,4 +1,4 @@
-"""The DACOOP escaper (SPEC §2), compiled: its repulsion from walls and bars and its
+"""The DACOOP escaper (docs/contract.md §2), compiled: its repulsion from walls and bars and its
 heading decision, called by `hola_ray.env._kernels.step_episode` for every live evader."""
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def evader_repulsion(px, py, rects, width, height, gain, reach, offset):
 
 
 # ---- reset ------------------------------------------------------------------------------
-# ---- evader (SPEC §2) --------------------------------------------------------------------
+# ---- evader (docs/contract.md §2) ----------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _pursuers_near(b, ex, ey, p, s):
     """The flee force Σ (e − p)/d² over the active pursuers within the sensitivity range,

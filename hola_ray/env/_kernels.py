@@ -117,7 +117,7 @@ def reset_masked(mask, p, s, obs):
 # ---- observation --------------------------------------------------------------------------
 @njit(cache=True)
 def observe(b, p, s, obs):
-    """Write every pursuer's egocentric observation of episode b into obs[b] (SPEC §1)."""
+    """Write every pursuer's egocentric observation of episode b into obs[b] (contract §1)."""
     fp, ip, rects, spawn = p
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,

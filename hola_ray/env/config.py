@@ -1,4 +1,4 @@
-"""Typed, validated configuration of the pursuit arena (SPEC §1) and its evader (SPEC §2).
+"""Typed, validated configuration of the pursuit arena (contract §1) and its evader (contract §2).
 
 Every number of the scenario lives here as a field with a default; nothing downstream
 hard-codes one. A bad value fails at construction, naming the field and the allowed range.
@@ -37,7 +37,7 @@ Region = tuple[float, float, float, float]
 
 @dataclass(frozen=True)
 class EvaderConfig:
-    """The DACOOP escaper (SPEC §2); distances in metres, converted from DACOOP's millimetres."""
+    """The DACOOP escaper (contract §2); distances in metres (DACOOP's are millimetres)."""
 
     sensitivity_range: float = 2.0
     """pursuers farther than this are ignored by the flee force and the panic level"""
@@ -118,8 +118,9 @@ APPROACH_MODES = ("distance", "own_move")
 
 @dataclass(frozen=True)
 class RewardConfig:
-    """Each pursuer's reward per step (SPEC §1). The defaults are SPEC's; DACOOP-A's code
-    used capture 20, collision 20, approach_scale 0.2 and obstacle_penalty 2 within 0.15 m."""
+    """Each pursuer's reward per step (contract §1). The defaults are the contract's;
+    DACOOP-A's code used capture 20, collision 20, approach_scale 0.2 and obstacle_penalty 2
+    within 0.15 m."""
 
     capture: float = 10.0
     """to every active pursuer, for each evader captured this step (shared)"""
@@ -128,7 +129,7 @@ class RewardConfig:
     approach_scale: float = 0.3
     """the approach term is Σ (d_prev − d_now) / approach_scale over live evaders"""
     approach: str = "distance"
-    """what d_now measures: `distance`, the distance after both moves (SPEC §1), so an
+    """what d_now measures: `distance`, the distance after both moves (contract §1), so an
     escaping evader costs the pursuer up to (v_e − v_p)·dt / approach_scale a step; or
     `own_move`, the distance from the pursuer's new position to where the evader was, so the
     term credits only the pursuer's own move and an escape costs it nothing"""
@@ -149,7 +150,7 @@ class RewardConfig:
     that the step disables included; a disabled pursuer's agent has terminated) receives the
     team's reward for the step, the mean over the n_p pursuers of the terms above (their sum
     / n_p: the scale of the per-pursuer reward, so the same PPO settings apply); False:
-    each pursuer its own terms (SPEC §1)"""
+    each pursuer its own terms (contract §1)"""
 
     def __post_init__(self) -> None:
         for name in ("capture", "collision", "obstacle_penalty", "teammate_penalty"):
@@ -185,7 +186,7 @@ class RewardConfig:
 
 @dataclass(frozen=True)
 class PursuitConfig:
-    """The pursuit scenario of SPEC §1 (paper Table I). Units: metres, seconds, radians."""
+    """The pursuit scenario of contract §1 (paper Table I). Units: metres, seconds, radians."""
 
     arena_width: float = 3.6
     """arena extent along x; the walls are obstacles"""
@@ -242,9 +243,9 @@ class PursuitConfig:
     disabled) after the own block (`ObsLayout.headings`); the observation's first
     entries are unchanged, so policies trained without it read them"""
     reward: RewardConfig = field(default_factory=RewardConfig)
-    """each pursuer's reward (SPEC §1)"""
+    """each pursuer's reward (contract §1)"""
     evader: EvaderConfig = field(default_factory=EvaderConfig)
-    """the escaper's parameters (SPEC §2)"""
+    """the escaper's parameters (contract §2)"""
 
     def __post_init__(self) -> None:
         # In this order: the first failing check is the error a bad config raises, and

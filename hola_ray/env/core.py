@@ -1,4 +1,4 @@
-"""The batched pursuit core: B independent episodes stepped at once (SPEC §1–§2).
+"""The batched pursuit core: B independent episodes stepped at once (docs/contract.md §1–§2).
 
 Each episode owns its random stream, so episode b of a batch replays exactly as a single
 environment given the same seed, whatever else the batch holds. A finished episode stays
@@ -199,7 +199,7 @@ class BatchedPursuit:
         return self.captures >= self.config.n_evaders
 
     def episode_metrics(self, b: int) -> dict[str, float | int | bool]:
-        """SPEC §V metrics of episode b as it stands (final once it is done)."""
+        """the metrics of contract §1.6 of episode b as it stands (final once it is done)."""
         return {
             "success": bool(self.success[b]),
             "collision": bool(self.collided[b]),

@@ -1,4 +1,4 @@
-"""Where each reading sits in a pursuer's observation vector (SPEC §1): the one layout the
+"""Where each reading sits in a pursuer's observation vector (contract §1): the one layout the
 simulator writes, `PursuitConfig.obs_dim` and the observation space read, the policies, the
 ONNX manifest and the scenario adapters slice by, and an export's input size is read back
 with (`evaders_for`). Built from a config as `PursuitConfig.layout`."""

@@ -16,7 +16,7 @@ from hola_ray.env.core import INITIAL_STATE_KEYS, BatchedPursuit
 
 
 class PursuitEnv(ParallelEnv):
-    """n_p pursuers (`pursuer_0`, …) chase n_e scripted evaders (SPEC §1–§2).
+    """n_p pursuers (`pursuer_0`, …) chase n_e scripted evaders (docs/contract.md §1–§2).
 
     Actions are `Box(0, 1, (1,))`: a turn of (2a − 1)·max_turn. A pursuer that collides
     terminates; the episode ends when every evader is caught or every pursuer is disabled,

@@ -1,4 +1,4 @@
-"""Metrics, rollouts and tables over the batched core (SPEC §1 metrics, paper §V)."""
+"""Metrics, rollouts and tables over the batched core (docs/contract.md §1 metrics, paper §V)."""
 
 from hola_ray.evaluation.rollout import RolloutResult, rollout
 from hola_ray.evaluation.stats import episode_seeds, mean_and_se

@@ -2,7 +2,7 @@
 
 Every trial (method × training seed) is evaluated on the same episodes: per evaluation seed
 the same episode seeds, the same drawn seats and teammates (common random numbers). The
-intervals come from one stratified bootstrap (SPEC §5; the held-out protocol of jax-aht):
+intervals come from one stratified bootstrap (contract §5; the held-out protocol of jax-aht):
 each draw
 
 - resamples the training seeds of every method, with replacement, within that method, and

@@ -1,4 +1,4 @@
-"""Play N episodes of any mix of policies on the batched core and report SPEC §V metrics."""
+"""Play N episodes of any mix of policies on the batched core; report contract §1.6's metrics."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The learner's scale (SPEC §5): reference seats played on the learner's own episodes.
+"""The learner's scale (docs/contract.md §5): reference seats played on the learner's own episodes.
 
 A zero-shot figure has a floor set by the teammates: at 3 vs 2 with the HeT pool a seat
 that holds its heading, and crashes in nearly every episode, still scores about half the
@@ -18,7 +18,7 @@ per ceiling, with a 95 % interval from the evaluation's stratified bootstrap
 same draw for the learner and the references, so their shared noise cancels). 1 is the
 ceiling's level, 0 the floor's.
 
-The manifest is written by `python -m hola_ray.pools reference` from its candidates' figures;
+The manifest is written by `python -m hola_ray pools reference` from its candidates' figures;
 nothing else writes it.
 """
 
@@ -57,7 +57,7 @@ def load_references(config: PursuitConfig, folder: Path = REFERENCE_DIR) -> dict
     file verified. A learned ceiling trained for another team size is left out (the
     hand-written one plays any)."""
     manifest = homes.read_manifest(
-        folder, FORMAT, PoolError, "choose them with python -m hola_ray.pools reference"
+        folder, FORMAT, PoolError, "choose them with python -m hola_ray pools reference"
     )
     files = {
         e["file"]: e["sha256"] for e in manifest["ceilings"].values() if e.get("file") is not None

@@ -1,5 +1,5 @@
 """The learned team flown as Crazyflies (pybullet, the firmware's PID cascade): the
-sim-to-sim check of `python -m hola_ray.fly`."""
+sim-to-sim check of `python -m hola_ray fly`."""
 
 from hola_ray.flight.crazyflie import CrazyflieModel, PIDCascade
 from hola_ray.flight.dynamics import HEIGHT, Crazyflies, GuardedArena

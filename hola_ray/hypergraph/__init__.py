@@ -1,4 +1,4 @@
-"""The hypergraphic-form game (SPEC §4): pure numpy, no Ray."""
+"""The hypergraphic-form game (docs/contract.md §4): pure numpy, no Ray."""
 
 from hola_ray.hypergraph.hyfog import HyFoG, HyFoGError, Hyperedge
 from hola_ray.hypergraph.myerson import coalition_values, myerson_sample, myerson_value

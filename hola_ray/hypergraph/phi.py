@@ -1,4 +1,4 @@
-"""The φ solver: which teammates the Oracle trains with (paper §IV-B, SPEC §4).
+"""The φ solver: which teammates the Oracle trains with (paper §IV-B, docs/contract.md §4).
 
 φ favours nodes of low value x (poor cooperators), through an inverse on a shifted,
 strictly positive value:

@@ -1,4 +1,4 @@
-"""What a training method is: a strategy over the one trainer (SPEC §5).
+"""What a training method is: a strategy over the one trainer (docs/contract.md §5).
 
 A method says how its partner population is built (generation 0), how the Oracle seats
 the learner, how partners are drawn from the population (its `Rules`, which the

@@ -1,4 +1,4 @@
-"""The typed, validated configuration of one training run (SPEC §5).
+"""The typed, validated configuration of one training run (docs/contract.md §5).
 
 A run config is YAML with the sections `env`, `oracle`, `pretrain`, `population`,
 `grapher` and `validation`, each registered method's own section (`fcp`, `pbt`), plus the
@@ -183,7 +183,7 @@ class ValidationConfig:
     does best there (highest success, then lowest collision)."""
 
     pool: str = "validation"
-    """the committed validation set (`pools/validation`, `python -m hola_ray.pools show
+    """the committed validation set (`pools/validation`, `python -m hola_ray pools show
     --pool validation`), a folder holding such a manifest, or none (best.pt then follows
     each method's own judging)"""
     episodes: int = 96

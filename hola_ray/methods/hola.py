@@ -2,7 +2,7 @@
 φ, the shifted inverse of a node value of the HyFoG, and joins the population when its η
 rank is within the top m.
 
-- `hola`: φ from the Myerson value of the hypergraphic game (SPEC §4);
+- `hola`: φ from the Myerson value of the hypergraphic game (docs/contract.md §4);
 - `hola_r`: φ from each member's mean hyperedge reward (HOLA-Drone_R);
 - `uniform`: partners drawn uniformly, the control for what φ adds.
 """

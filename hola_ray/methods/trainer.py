@@ -1,4 +1,4 @@
-"""The one trainer (SPEC §5): generations of Oracle → judge → coordinator.
+"""The one trainer (docs/contract.md §5): generations of Oracle → judge → coordinator.
 
 Every method (`hola_ray.methods.registry.METHODS`) runs this loop; it asks the method
 (`hola_ray.methods.base.Method`) where methods differ and has no branch on a method's name.

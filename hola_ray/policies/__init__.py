@@ -1,4 +1,4 @@
-"""Every pursuer policy behind one interface (SPEC §3): hand-written teammates and learned
+"""Every pursuer policy behind one interface (contract §3): hand-written teammates and learned
 pursuers exported from RLlib (`MLPPolicy`, plain torch)."""
 
 from hola_ray.policies.apf import APFA, APFConfig, apf_actions

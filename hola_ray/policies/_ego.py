@@ -30,7 +30,7 @@ def nearest_live_evader(obs, n, n_evaders, far):
 @njit(cache=True, inline="always")
 def turn_action(turn, max_turn):
     """The action in [0, 1] whose heading change (2a − 1)·max_turn is nearest to `turn`
-    (the arena's action rule, SPEC §1)."""
+    (the arena's action rule, docs/contract.md §1)."""
     return min(max(0.5 + turn / (2.0 * max_turn), 0.0), 1.0)
 
 

@@ -1,4 +1,4 @@
-"""APF-A: the artificial potential field of DACOOP-A (Zhang et al., RA-L 2023) (SPEC §3).
+"""APF-A: the artificial potential field of DACOOP-A (Zhang et al., RA-L 2023) (contract §3).
 
 Read from the public code, Zero8319/DACOOP-A, `Codes/APF_function_for_DQN.py` (forces in
 millimetres) and `Codes/environment.py` (`from_action_to_APF`, the action → (λ, η) grid):

@@ -1,4 +1,4 @@
-"""The one interface every pursuer policy sits behind (SPEC §3).
+"""The one interface every pursuer policy sits behind (docs/contract.md §3).
 
 A policy maps a batch of observations [N, obs_dim] to a batch of actions [N] in [0, 1],
 so that any mix of policies can fill any pursuer slots. Policies that keep per-episode

@@ -1,4 +1,4 @@
-"""D3QN-G: a dueling double DQN that picks APF-A's (λ, η) pair, then Greedy (SPEC §3).
+"""D3QN-G: a dueling double DQN that picks APF-A's (λ, η) pair, then Greedy (docs/contract.md §3).
 
 As in DACOOP-A (Zhang et al., RA-L 2023; Zero8319/DACOOP-A, `Codes/attention3.py` and
 `Codes/environment.py`), each pursuer's DQN reads a small state and its discrete action

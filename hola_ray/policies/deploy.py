@@ -1,7 +1,7 @@
 """A learned pursuer for a flight stack: its deterministic actor as an ONNX graph, and a
 manifest that says what the graph reads and what its output means.
 
-The graph takes the raw observation of SPEC §1 ([N, obs_dim] float32, the layout of
+The graph takes the raw observation of contract §1 ([N, obs_dim] float32, the layout of
 `ObsLayout`), appends the proximity features itself when the actor was trained with them,
 and returns the action the arena takes (`action`, [N] in [0, 1]) and the heading change it
 commands (`heading_change`, [N] radians, positive to the left). It is the arithmetic of
@@ -96,7 +96,7 @@ def export_onnx(policy: MLPPolicy, path: str | Path) -> Path:
 
 def observation_entries(config: PursuitConfig) -> list[dict[str, Any]]:
     """One entry per observation index: what it measures, frame, units, scale and the
-    value it reads when unobserved, as a flight stack must fill it (SPEC §1). Each block
+    value it reads when unobserved, as a flight stack must fill it (contract §1). Each block
     starts where the config's `ObsLayout` puts it, so the manifest cannot drift from the
     layout the simulator writes."""
     layout = config.layout

@@ -1,4 +1,4 @@
-"""Greedy: chase the nearest live evader; sidestep anything within reach (SPEC §3)."""
+"""Greedy: chase the nearest live evader; sidestep anything within reach (docs/contract.md §3)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A seat that holds its heading: the floor of the learner's scale (SPEC §5).
+"""A seat that holds its heading: the floor of the learner's scale (docs/contract.md §5).
 
 It never turns (action 0.5: a heading change of 0), so it flies straight from its spawn
 until it hits something. What a team scores with it in one seat is what the other seats

@@ -1,4 +1,4 @@
-"""VICSEK: group chasing after Janosov et al. (2017) (SPEC §3).
+"""VICSEK: group chasing after Janosov et al. (2017) (docs/contract.md §3).
 
 Desired velocity = a chase term toward the evader's predicted position (corrected by the
 relative velocity) + soft repulsion from the nearest wall or obstacle + repulsion from

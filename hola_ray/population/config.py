@@ -10,7 +10,7 @@ from hola_ray.env.checks import finite_in, positive_int, require
 
 @dataclass(frozen=True)
 class PopulationConfig:
-    """The population that the HyFoG describes (SPEC §4–5)."""
+    """The population that the HyFoG describes (docs/contract.md §4–5)."""
 
     max_size: int = 10
     """hypergraph size: most members in the population"""

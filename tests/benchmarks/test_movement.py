@@ -94,9 +94,9 @@ def test_with_start_the_common_start_is_each_curves_generation_zero(tmp_path, mo
     the slope counts from where the learners began."""
     import yaml
 
+    from hola_ray.commands.run import DEFAULT
     from hola_ray.methods import monitors
     from hola_ray.methods.config import RunConfig
-    from hola_ray.run import DEFAULT
 
     config = RunConfig.from_dict(DEFAULT)  # fcp-3v1-s0 (the start) fits its layout
     played = []

@@ -1,4 +1,4 @@
-"""The DACOOP escaper (SPEC §2): bounded turns, constant speed, flight, staying inside."""
+"""The DACOOP escaper (contract §2): bounded turns, constant speed, flight, staying inside."""
 
 from __future__ import annotations
 

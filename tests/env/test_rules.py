@@ -1,4 +1,4 @@
-"""Hand-worked geometry and the rules of SPEC §1 on the batched core."""
+"""Hand-worked geometry and the rules of docs/contract.md §1 on the batched core."""
 
 from __future__ import annotations
 
@@ -163,7 +163,7 @@ def test_nan_actions_raise_and_out_of_range_are_clipped(config):
 
 @pytest.mark.parametrize("mode", ["distance", "own_move"])
 def test_approach_reward_is_the_distance_gained(config, mode):
-    """`distance`: d_now after both moves (SPEC §1); `own_move`: from the pursuer's new
+    """`distance`: d_now after both moves (docs/contract.md §1); `own_move`: from the pursuer's new
     position to where the evader was, so an evader's escape costs the pursuer nothing."""
     reward = dataclasses.replace(config.reward, approach=mode)
     env = BatchedPursuit(dataclasses.replace(config, reward=reward), 4)

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import torch
 
+from hola_ray.commands.evaluate import main
 from hola_ray.env.config import PursuitConfig
-from hola_ray.evaluate import main
 from hola_ray.evaluation.teams import draw_teams, play
 from hola_ray.evaluation.zero_shot import br_prox, cell_returns, iqm
 from hola_ray.policies.learned import random_export
@@ -114,7 +114,7 @@ def test_partner_from_a_module_in_a_temporary_directory(
 
 
 def test_the_evaluation_plays_the_learners_number_of_evaders(learner_file, tmp_path):
-    from hola_ray.evaluate import learners_scenario
+    from hola_ray.commands.evaluate import learners_scenario
 
     assert learners_scenario([learner_file]).n_evaders == 2
     one = tmp_path / "one.pt"
@@ -139,8 +139,8 @@ def test_a_bad_pool_or_partner_is_one_clear_error(learner_file, capsys, args, me
 
 
 def test_replay_mixes_learned_and_hand_written_policies_with_a_legend(learner_file, tmp_path):
-    from hola_ray.replay import main as replay
-    from hola_ray.replay import resolve
+    from hola_ray.commands.replay import main as replay
+    from hola_ray.commands.replay import resolve
 
     assert resolve(str(learner_file), PursuitConfig()).name == "mine"
     with pytest.raises(ValueError, match="unknown policy 'nobody'"):
@@ -151,7 +151,7 @@ def test_replay_mixes_learned_and_hand_written_policies_with_a_legend(learner_fi
 
 
 def test_replay_plays_the_scenario_a_learner_was_trained_in(tmp_path, capsys):
-    from hola_ray.replay import main as replay
+    from hola_ray.commands.replay import main as replay
 
     one = PursuitConfig(n_evaders=1)
     path = tmp_path / "one.pt"

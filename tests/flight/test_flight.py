@@ -1,5 +1,5 @@
 """The Crazyflie flight check: the PID cascade flies a pybullet Crazyflie where it is told,
-the arena takes the flown positions, and `python -m hola_ray.fly` reports both columns."""
+the arena takes the flown positions, and `python -m hola_ray fly` reports both columns."""
 
 from __future__ import annotations
 
@@ -74,7 +74,8 @@ def test_the_fly_command_flies_one_short_episode_and_ends_on_a_json_line(tmp_pat
     cmd = [
         sys.executable,
         "-m",
-        "hola_ray.fly",
+        "hola_ray",
+        "fly",
         "ppo-1",
         "--teammates",
         "greedy",

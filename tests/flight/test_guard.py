@@ -64,7 +64,7 @@ def test_the_guarded_arena_moves_as_the_arena_where_nothing_is_near(config):
 
 def test_the_fly_command_flies_and_plays_the_arena_through_the_guard(capsys):
     pytest.importorskip("pybullet")
-    from hola_ray.fly import main
+    from hola_ray.commands.fly import main
 
     assert main(["ppo-1", "--guard", "--episodes", "2", "--horizon", "120", "--json"]) == 0
     figures = json.loads(capsys.readouterr().out.strip().splitlines()[-1])

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from hola_ray import status
+from hola_ray.commands import status
 from hola_ray.env.config import ConfigError, PursuitConfig, require
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.methods.base import Method, Origin
@@ -409,7 +409,7 @@ def test_a_run_adopts_the_generation_zero_of_a_run_with_the_same_pre_training(
 def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does_not_fit(
     tmp_path, capsys, monkeypatch
 ):
-    """`python -m hola_ray.populations build` on a tiny population config: the manifest
+    """`python -m hola_ray populations build` on a tiny population config: the manifest
     names every member's files, hashes, role and team figures; a run with
     `pretrain.population` takes that generation 0 and trains on; a changed file, another
     layout, another kind of population and a member that is a pool's are each refused in
@@ -417,7 +417,7 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
     import json
     import shutil
 
-    from hola_ray import populations
+    from hola_ray.commands import populations
     from hola_ray.evaluation.pools import POOLS_DIR
     from hola_ray.population import shipped
 
@@ -432,7 +432,8 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
     assert populations.main(["build", "tiny-s0", "--episodes", "4", "--quiet"]) == 0
     said = capsys.readouterr().out
     assert "population tiny-s0 written to" in said and "node_0" in said
-    assert "[tiny-s0] NOT at SPEC's 3v2 bar (as copies: success >= 60%, collision <= 35%)" in said
+    bar = "(as copies: success >= 60%, collision <= 35%)"
+    assert f"[tiny-s0] NOT at the contract's 3v2 bar {bar}" in said
     folder = shelf / "tiny-s0"
     manifest = json.loads((folder / "manifest.json").read_text())
     assert manifest["kind"] == "mep" and manifest["seed"] == 0

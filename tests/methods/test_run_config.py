@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 import yaml
 
+from hola_ray.commands.run import DEFAULT
 from hola_ray.env.config import ConfigError
 from hola_ray.methods.config import RunConfig
-from hola_ray.run import DEFAULT
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 
@@ -39,9 +39,9 @@ def test_a_method_without_a_population_takes_only_its_start_from_the_shipped_one
     starts from random weights; hola takes the population (built in another scenario: its
     G_0 weighed again) and starts from its member.
     Generation zero is one value, resolved from the config and the folder alone."""
+    from hola_ray.commands.run import DEFAULT
     from hola_ray.methods.generation_zero import resolve
     from hola_ray.population.rundir import RunDir
-    from hola_ray.run import DEFAULT
 
     config = RunConfig.from_dict(DEFAULT | {"method": "sp"})
     assert config.pretrain.shipped and config.strategy.origin.kind is None
@@ -187,7 +187,7 @@ def test_malformed_values_are_one_line_naming_file_line_and_field(tmp_path, text
 def test_set_overrides_one_value_read_as_yaml(tmp_path):
     """`python -m hola_ray.run --set section.field=value`: values read as YAML (1e-4 a
     number, lists, nested sections), applied over the file or the embedded default."""
-    from hola_ray import run
+    from hola_ray.commands import run
 
     args = run.parse_args(
         [
@@ -217,7 +217,7 @@ def test_set_overrides_one_value_read_as_yaml(tmp_path):
     ],
 )
 def test_a_bad_set_is_one_line_naming_it(tmp_path, sets, message):
-    from hola_ray import run
+    from hola_ray.commands import run
 
     argv = ["--out", str(tmp_path / "r")] + [a for s in sets for a in ("--set", s)]
     with pytest.raises(ConfigError, match=message):

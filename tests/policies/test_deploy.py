@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hola_ray.commands.export import resolve
 from hola_ray.evaluation.pools import load_pool
 from hola_ray.evaluation.probe import reference_observations
-from hola_ray.export import resolve
 from hola_ray.policies.deploy import OnnxPolicy, export_onnx, manifest, onnx_actions, write_manifest
 from hola_ray.policies.learned import MLPPolicy
 
@@ -72,7 +72,7 @@ def test_the_export_command_takes_a_run_directory_and_says_where_it_came_from(sm
     run_dir, done = smoke_run
     assert done.returncode == 0, done.stderr[-2000:]
     out = tmp_path / "learner.onnx"
-    cmd = [sys.executable, "-m", "hola_ray.export", str(run_dir), "--onnx", str(out)]
+    cmd = [sys.executable, "-m", "hola_ray", "export", str(run_dir), "--onnx", str(out)]
     got = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert got.returncode == 0, got.stderr[-2000:]
     assert "largest difference" in got.stdout
@@ -87,7 +87,15 @@ def test_the_export_command_takes_a_run_directory_and_says_where_it_came_from(sm
 
 
 def test_a_bad_export_request_is_one_line(tmp_path):
-    cmd = [sys.executable, "-m", "hola_ray.export", "d3qn-g-1", "--onnx", str(tmp_path / "x.onnx")]
+    cmd = [
+        sys.executable,
+        "-m",
+        "hola_ray",
+        "export",
+        "d3qn-g-1",
+        "--onnx",
+        str(tmp_path / "x.onnx"),
+    ]
     got = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert got.returncode == 2 and "only MLP learners export" in got.stderr
     assert len(got.stderr.strip().splitlines()) == 1

@@ -1,6 +1,6 @@
-"""Zero-shot evaluation against unseen teammate pools (paper §V, Fig. 4; SPEC §5).
+"""Zero-shot evaluation against unseen teammate pools (paper §V, Fig. 4; docs/contract.md §5).
 
-    python -m hola_ray.evaluate RUN_DIR|POLICY.pt [...] [--pool hot|het|DIR ...]
+    python -m hola_ray evaluate RUN_DIR|POLICY.pt [...] [--pool hot|het|DIR ...]
         [--partner MODULE:CALLABLE ...] [--episodes 50] [--seeds 0 1 2]
         [--plot] [--out DIR] [--json]
 
@@ -70,7 +70,7 @@ def learners_scenario(paths: list[Path]) -> PursuitConfig:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = OneLineParser(prog="python -m hola_ray.evaluate", description=__doc__.split("\n\n")[0])
+    parser = OneLineParser(prog="python -m hola_ray evaluate", description=__doc__.split("\n\n")[0])
     parser.add_argument("learners", nargs="+", type=Path, help="run directories or policy files")
     parser.add_argument("--pool", action="append", help="hot, het or a pool folder (default: both)")
     parser.add_argument("--partner", action="append", default=[], help="MODULE:CALLABLE")

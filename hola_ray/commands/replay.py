@@ -1,11 +1,11 @@
-"""Watch an episode: `python -m hola_ray.replay --team vicsek vicsek greedy --seed 3`.
+"""Watch an episode: `python -m hola_ray replay --team vicsek vicsek greedy --seed 3`.
 
 A team mixes anything that plays: hand-written policies by name (greedy, vicsek,
 apf-a-0 … apf-a-23), pool members by id (ppo-1, ppo-2, d3qn-g-1, d3qn-g-2; loaded from
 the committed pools, hashes checked), and learned policies by path (a run directory's
 learner.pt, or an exported .pt file), e.g.
 
-    python -m hola_ray.replay --team runs/x/learner.pt d3qn-g-1 vicsek
+    python -m hola_ray replay --team runs/x/learner.pt d3qn-g-1 vicsek
 
 Writes an animated GIF and a PNG of the trajectories (arena, obstacles, capture and
 collision marks, a legend naming each seat's policy) and prints the episode's metrics.
@@ -45,7 +45,7 @@ def resolve(name: str, config: PursuitConfig) -> Policy:
 
 def main(argv: list[str] | None = None) -> int:
     """The command; 0, or 2 after one line on stderr for a bad input."""
-    parser = OneLineParser(prog="python -m hola_ray.replay", description=__doc__)
+    parser = OneLineParser(prog="python -m hola_ray replay", description=__doc__)
     parser.add_argument(
         "--team",
         nargs="+",

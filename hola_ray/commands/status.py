@@ -1,4 +1,4 @@
-"""Where a run stands: `python -m hola_ray.status RUN_DIR [--live] [--plot]`.
+"""Where a run stands: `python -m hola_ray status RUN_DIR [--live] [--plot]`.
 
 Reads the run directory: last completed generation, population with slot, η, φ and node
 value, the last metrics row. With --live it also asks the running
@@ -324,7 +324,7 @@ _PHASE_COLORS = (
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m hola_ray.status", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m hola_ray status", description=__doc__)
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--live", action="store_true", help="also ask the running coordinator")
     parser.add_argument("--json", action="store_true", help="print the view as JSON")

@@ -1,7 +1,7 @@
-"""Competent populations, built once and shipped like the pools (SPEC §5).
+"""Competent populations, built once and shipped like the pools (docs/contract.md §5).
 
-    python -m hola_ray.populations build NAME [--episodes 500] [--quiet] [--carry]
-    python -m hola_ray.populations show [NAME]
+    python -m hola_ray populations build NAME [--episodes 500] [--quiet] [--carry]
+    python -m hola_ray populations show [NAME]
 
 `build` trains generation 0 of `configs/populations/NAME.yaml` (a run config with
 `generations: 0`: MEP's members until each is competent as a team of its own copies, or
@@ -49,7 +49,7 @@ BUILDS = homes.POOLS / "builds"
 """where `build --carry` keeps each build's last check, to commit between machines"""
 PROGRESS = "progress.json"
 BARS = {"3v1": (0.85, 0.15), "3v2": (0.60, 0.35)}
-"""SPEC §5.1: a learned member as a team of its own copies succeeds at least, and collides
+"""contract §5.1: a learned member as a team of its own copies succeeds at least, and collides
 at most, this often (per scenario)"""
 JUDGED = ("member", "checkpoint-end")
 """the roles held to the bar: MEP's members and FCP's end checkpoints (a start checkpoint is
@@ -75,7 +75,7 @@ def team_figures(config: Any, export: dict[str, Any], episodes: int) -> dict[str
 
 
 def below_bar(figures: dict[int, dict[str, float]], roles: dict[int, str], scenario: str) -> str:
-    """The members held to SPEC's bar (`JUDGED`) that miss it, said in one line; "" when
+    """The members held to the contract's bar (`JUDGED`) that miss it, said in one line; "" when
     none does."""
     success, collision = BARS[scenario]
     missed = [
@@ -86,7 +86,7 @@ def below_bar(figures: dict[int, dict[str, float]], roles: dict[int, str], scena
     if not missed:
         return ""
     return (
-        f"NOT at SPEC's {scenario} bar (as copies: success >= {success:.0%}, collision <= "
+        f"NOT at the contract's {scenario} bar (as copies: success >= {success:.0%}, collision <= "
         f"{collision:.0%}): " + ", ".join(missed)
     )
 
@@ -228,7 +228,8 @@ def build(name: str, episodes: int, progress: bool = True, carry: bool = False) 
         scenario=scenario,
     )
     missed = below_bar(figures, roles, scenario)
-    print(f"[{name}] " + (missed or f"every judged member at SPEC's {scenario} bar"), flush=True)
+    said = missed or f"every judged member at the contract's {scenario} bar"
+    print(f"[{name}] {said}", flush=True)
     if carried is not None:
         carried.shipped()
     return out
@@ -256,7 +257,7 @@ def show(population: str | Path) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(
-        prog="python -m hola_ray.populations", description=__doc__.split("\n\n")[0]
+        prog="python -m hola_ray populations", description=__doc__.split("\n\n")[0]
     )
     sub = parser.add_subparsers(dest="command", required=True)
     b = sub.add_parser("build", help="train generation 0 of configs/populations/NAME.yaml")
@@ -291,7 +292,7 @@ def script() -> None:
     """`hola-populations` (`[project.scripts]`): `main` under the fixed hash seed."""
     from hola_ray.process import fixed_hash_seed, leave
 
-    fixed_hash_seed("hola_ray.populations", sys.argv[1:])
+    fixed_hash_seed("hola_ray.commands.populations", sys.argv[1:])
     leave(main())
 
 

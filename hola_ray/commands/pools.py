@@ -1,8 +1,8 @@
 """The unseen teammate pools (contract §3, paper Appendix): trained once, committed, verified.
 
-    python -m hola_ray.pools build [--pool hot|het|validation] [--episodes 50] [--seeds 0 1 2]
-    python -m hola_ray.pools show [--pool hot|het|validation]
-    python -m hola_ray.pools reference [--handwritten NAME ...] [--learned FILE ...]
+    python -m hola_ray pools build [--pool hot|het|validation] [--episodes 50] [--seeds 0 1 2]
+    python -m hola_ray pools show [--pool hot|het|validation]
+    python -m hola_ray pools reference [--handwritten NAME ...] [--learned FILE ...]
 
 This is the command that builds and shows the pools; what a pool is, and how it is loaded
 and verified, is `hola_ray.evaluation.pools`.
@@ -163,7 +163,7 @@ def show(pool: str | Path) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = OneLineParser(prog="python -m hola_ray.pools", description=__doc__.split("\n\n")[0])
+    parser = OneLineParser(prog="python -m hola_ray pools", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     b = sub.add_parser("build", help="train what is missing and write pools/<name>/")
     b.add_argument("--pool", choices=sorted(POOLS), action="append", help="default: both")
@@ -209,7 +209,7 @@ def script() -> None:
 
     from hola_ray.process import fixed_hash_seed, leave
 
-    fixed_hash_seed("hola_ray.pools", sys.argv[1:])
+    fixed_hash_seed("hola_ray.commands.pools", sys.argv[1:])
     leave(main())
 
 

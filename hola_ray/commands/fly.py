@@ -1,4 +1,4 @@
-"""Fly a learned team as Crazyflies: `python -m hola_ray.fly ONNX_OR_POLICY`.
+"""Fly a learned team as Crazyflies: `python -m hola_ray fly ONNX_OR_POLICY`.
 
 The same arena, bars and DACOOP evaders as training, but each pursuer is a Crazyflie 2.x
 (pybullet rigid body, the firmware's PID cascade) holding 1 m and tracking the velocity
@@ -6,7 +6,7 @@ set-point its policy's heading commands each control period; the policies read
 observations built from the drones' true positions. The same seeds and teams are also
 played in the kinematic arena, so the two columns are paired.
 
-ONNX_OR_POLICY: an ONNX file written by `python -m hola_ray.export` (played by
+ONNX_OR_POLICY: an ONNX file written by `python -m hola_ray export` (played by
 onnxruntime; its manifest beside it gives the scenario), or anything export takes (a run
 directory, generation folder, .pt file or pool member id). It sits in seat 0; the other
 seats are copies of it, or `--teammates` (registry names, pool member ids or files, one per
@@ -45,15 +45,15 @@ def learner(spec: str, evaders: int | None) -> tuple[Any, PursuitConfig]:
         if evaders not in (None, config.n_evaders):
             raise ValueError(f"{spec} flies {config.n_evaders} evader(s), not {evaders}")
         return OnnxPolicy(spec), config
+    from hola_ray.commands.export import resolve
     from hola_ray.evaluation.pools import MEMBERS
-    from hola_ray.export import resolve
 
     policy, _ = resolve(spec)
     config = policy.config
     if evaders is not None and evaders != config.n_evaders:
         if spec not in MEMBERS:
             raise ValueError(f"{spec} was trained for {config.n_evaders} evader(s), not {evaders}")
-        from hola_ray.replay import resolve as by_name
+        from hola_ray.commands.replay import resolve as by_name
 
         config = dataclasses.replace(config, n_evaders=evaders)
         policy = by_name(spec, config)  # a pool member plays other evader counts adapted
@@ -114,7 +114,7 @@ def summary(played: dict[str, Any]) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = OneLineParser(prog="python -m hola_ray.fly", description=__doc__)
+    parser = OneLineParser(prog="python -m hola_ray fly", description=__doc__)
     parser.add_argument(
         "policy", nargs="?", help="an exported .onnx file, or a run directory, .pt or member id"
     )
@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
         seat0, config = learner(args.policy, args.evaders)
         if args.horizon is not None:
             config = dataclasses.replace(config, horizon=args.horizon)  # checked on creation
-        from hola_ray.replay import resolve as by_name
+        from hola_ray.commands.replay import resolve as by_name
 
         mates = args.teammates or [args.policy] * (config.n_pursuers - 1)
         if len(mates) != config.n_pursuers - 1:

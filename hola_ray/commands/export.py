@@ -1,4 +1,4 @@
-"""Take a learner to a flight stack: `python -m hola_ray.export POLICY --onnx OUT.onnx`.
+"""Take a learner to a flight stack: `python -m hola_ray export POLICY --onnx OUT.onnx`.
 
 POLICY is a run directory (its final learner.pt; `--best` takes best.pt), a generation
 folder (`RUN/generations/gen_0008`), an export file (.pt) or a pool member id (ppo-1 …).
@@ -102,7 +102,7 @@ def check(policy: Any, onnx_path: Path, episodes: int = 8, seed: int = 0) -> tup
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = OneLineParser(prog="python -m hola_ray.export", description=__doc__)
+    parser = OneLineParser(prog="python -m hola_ray export", description=__doc__)
     parser.add_argument("policy", help="run directory, generation folder, .pt file or member id")
     parser.add_argument("--onnx", type=Path, required=True, help="the ONNX file to write")
     parser.add_argument("--best", action="store_true", help="a run directory's best.pt")
