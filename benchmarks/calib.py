@@ -30,7 +30,7 @@ REFERENCE_S = {"torch": 3.40, "numpy": 2.60, "python": 1.88}
 within 3–7 % of the one the earlier single-workload calibration was anchored on)"""
 
 
-def _torch() -> None:
+def _torch(fraction: float = 1.0) -> None:
     torch.set_num_threads(2)
     torch.manual_seed(0)
     net = torch.nn.Sequential(
@@ -42,25 +42,25 @@ def _torch() -> None:
     )
     opt = torch.optim.Adam(net.parameters(), lr=1e-3)
     x, y = torch.randn(1024, 40), torch.randn(1024, 2)
-    for _ in range(1500):
+    for _ in range(round(1500 * fraction)):
         loss = ((net(x) - y) ** 2).mean()
         opt.zero_grad()
         loss.backward()
         opt.step()
 
 
-def _numpy() -> None:
+def _numpy(fraction: float = 1.0) -> None:
     rng = np.random.default_rng(0)
     a, b = rng.standard_normal((192, 3)), rng.standard_normal((192, 3))
-    for _ in range(100_000):
+    for _ in range(round(100_000 * fraction)):
         d = np.hypot(a[:, 0] - b[:, 0], a[:, 1] - b[:, 1])
         a[:, 2] = np.arctan2(np.sin(a[:, 2] + d * 1e-3), np.cos(a[:, 2]))
         np.clip(a, -5.0, 5.0, out=a)
 
 
-def _python() -> None:
+def _python(fraction: float = 1.0) -> None:
     rows: list = []
-    for i in range(3_000_000):
+    for i in range(round(3_000_000 * fraction)):
         step = {"agent": f"pursuer_{i % 3}", "reward": i * 0.5, "done": i % 97 == 0}
         rows.append(step)
         if step["done"]:
@@ -71,11 +71,11 @@ def _python() -> None:
 WORKLOADS = {"torch": _torch, "numpy": _numpy, "python": _python}
 
 
-def best(fn, repeats: int = 5) -> float:
+def best(fn, repeats: int = 5, fraction: float = 1.0) -> float:
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        fn()
+        fn(fraction)
         times.append(time.perf_counter() - t0)
     return min(times)
 
@@ -85,9 +85,16 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--best-of", type=int, default=5, help="runs of each workload")
+    parser.add_argument(
+        "--fraction",
+        type=float,
+        default=1.0,
+        help="of each workload (a smoke test: the scale is only meaningful at 1)",
+    )
     args = parser.parse_args(argv)
-    here = {name: round(best(fn, args.best_of), 3) for name, fn in WORKLOADS.items()}
-    scale = math.exp(sum(math.log(REFERENCE_S[k] / here[k]) for k in here) / len(here))
+    here = {name: round(best(fn, args.best_of, args.fraction), 3) for name, fn in WORKLOADS.items()}
+    reference = {k: v * args.fraction for k, v in REFERENCE_S.items()}
+    scale = math.exp(sum(math.log(reference[k] / here[k]) for k in here) / len(here))
     print(json.dumps({"calib_s": here, "reference_s": REFERENCE_S, "scale": round(scale, 3)}))
     return 0
 

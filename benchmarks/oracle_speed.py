@@ -105,17 +105,18 @@ def main(argv: list[str] | None = None) -> dict:
     import ray
 
     from hola_ray.commands.run import read_config
-    from hola_ray.process import init_ray
+    from hola_ray.process import join_or_init_ray
 
     config = read_config(args.config, args.sets)
-    init_ray("oracle_speed", num_cpus=2)
+    started = join_or_init_ray("oracle_speed", num_cpus=2)
     rows = []
     for _ in range(args.repeats):
         for seating in args.seatings:
             for value in (first, second):
                 rows.append(measure(config, seating, key, value, args.samples))
                 print(json.dumps(rows[-1]), flush=True)
-    ray.shutdown()
+    if started:
+        ray.shutdown()
     summary: dict = {
         "config": str(args.config),
         "sets": args.sets,

@@ -25,6 +25,7 @@ import ray
 
 from hola_ray.homes import ROOT
 from hola_ray.methods.config import SAMPLERS
+from hola_ray.process import join_or_init_ray
 
 
 def profile_runner(runner, steps: int, top: int) -> dict:
@@ -66,7 +67,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--config", type=Path, help="a run config (default: the embedded one)")
     parser.add_argument("--set", action="append", default=[], dest="sets")
     args = parser.parse_args(argv)
-    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
+    started = join_or_init_ray("profile_sampling", num_cpus=2)
     default = read_config(args.config, args.sets)
     summary = {}
     for sampler in [args.sampler] if args.sampler else SAMPLERS:
@@ -92,7 +93,8 @@ def main(argv: list[str] | None = None) -> None:
                 f"  {row['share']:6.1%}  {row['tottime_s']:7.2f} s  {row['calls']:>9}  "
                 f"{row['function']}"
             )
-    ray.shutdown()
+    if started:
+        ray.shutdown()
     print(json.dumps(summary))
 
 

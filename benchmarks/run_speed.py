@@ -33,9 +33,10 @@ ROOT = Path(__file__).resolve().parents[1]
 T975 = (float("nan"), 12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262)
 
 
-def calibrate(best_of: int = 5) -> float:
+def calibrate(best_of: int = 5, fraction: float = 1.0) -> float:
+    command = [sys.executable, str(ROOT / "benchmarks" / "calib.py"), "--best-of", str(best_of)]
     out = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "calib.py"), "--best-of", str(best_of)],
+        command + ["--fraction", str(fraction)],
         capture_output=True,
         text=True,
         check=True,
@@ -118,6 +119,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--config", type=Path, help="a run config (default: the embedded one)")
     parser.add_argument("--no-warm", action="store_true", help="no smoke run first")
     parser.add_argument("--calib-best-of", type=int, default=5, help="calib.py's --best-of")
+    parser.add_argument("--calib-fraction", type=float, default=1.0, help="calib.py's --fraction")
     args = parser.parse_args(argv)
     scratch = args.out or Path(tempfile.mkdtemp(prefix="run_speed-"))
     scratch.mkdir(parents=True, exist_ok=True)
@@ -132,7 +134,7 @@ def main(argv: list[str] | None = None) -> dict:
                 capture_output=True,
             )
         trees = {"before": before, "after": ROOT}
-    scales = [calibrate(args.calib_best_of)]
+    scales = [calibrate(args.calib_best_of, args.calib_fraction)]
     for tree in trees.values() if not args.no_warm else ():
         warm(tree, scratch)
     rows = []
@@ -150,7 +152,7 @@ def main(argv: list[str] | None = None) -> dict:
                 }
             )
             print(json.dumps(rows[-1]), flush=True)
-    scales.append(calibrate(args.calib_best_of))
+    scales.append(calibrate(args.calib_best_of, args.calib_fraction))
     summary: dict = {"repeats": args.repeats, "sets": args.sets, "calib_scale": scales}
     for label in trees:
         mine = [r for r in rows if r["code"] == label]

@@ -221,12 +221,12 @@ def main(argv: list[str] | None = None) -> dict:
     from hola_ray.commands.run import read_config
     from hola_ray.oracle import Oracle
     from hola_ray.oracle.config import Seating
-    from hola_ray.process import init_ray
+    from hola_ray.process import join_or_init_ray
 
     config = read_config(args.config, args.sets)
     obs_dim = config.env.layout.dim
     flops = network_flops(config, obs_dim)
-    init_ray("update_step", num_cpus=2)
+    started = join_or_init_ray("update_step", num_cpus=2)
     oracle = Oracle(config.env, config.oracle, Seating(), config.seed)
     batch = config.oracle.train_batch
     rows: list[dict] = []
@@ -264,6 +264,10 @@ def main(argv: list[str] | None = None) -> dict:
                 print(json.dumps(rows[-1]), flush=True)
     finally:
         oracle.stop()
+        if started:
+            import ray
+
+            ray.shutdown()
     threads = {r["torch_threads"] for r in rows}.pop()
     machine = os.cpu_count() or 1
     limit = {"machine": matmul_rate(machine), "learner": matmul_rate(threads)}

@@ -98,6 +98,17 @@ the two run side by side (`init_ray_importing`), since two threads importing one
 while each holds another of its cycle make one of them fail."""
 
 
+def join_or_init_ray(namespace: str, num_cpus: int | None = None) -> bool:
+    """The Ray this process already holds (a notebook's, a test module's), else a local one
+    started here (`init_ray`); whether it started one, which its caller then shuts down."""
+    import ray
+
+    if ray.is_initialized():
+        return False
+    init_ray(namespace, num_cpus)
+    return True
+
+
 def init_ray_importing(module: str, *args: Any) -> tuple[str | None, ModuleType]:
     """`init_ray(*args)` with `module` imported meanwhile in a thread; (the dashboard's URL,
     the module). `ray.init` mostly waits on Ray's processes (the raylet registering, the

@@ -20,7 +20,7 @@ LEARNER = ROOT / "results" / "competence-3v2" / "hola" / "trials" / "hola-s2"
 
 SMOKE = {
     "myerson.py": ([], "max |diff|"),
-    "calib.py": (["--best-of", "1"], '"scale"'),
+    "calib.py": (["--best-of", "1", "--fraction", "0.02"], '"scale"'),
     "env_speed.py": (["--seconds", "0.02"], "batched core B=4096"),
     "guard_choice.py": (["2", str(LEARNER), "--horizon", "60"], '"validation"'),
     "seated.py": (

@@ -1,7 +1,7 @@
 """The benchmarks that build an Oracle or start a run (Ray and RLlib) run to their end on the
-smoke config's sizes, through their `main` in this process (each starts and stops its own
-Ray), and end on their figures as JSON. Their figures mean nothing at these sizes: the test
-is that every part of each script still runs against the package as it is."""
+smoke config's sizes, through their `main` in this process (each joins the module's Ray, as
+it would a notebook's), and end on their figures as JSON. Their figures mean nothing at
+these sizes: the test is that every part of each script still runs against the package."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import pytest
 
 from hola_ray.homes import ROOT
 
-pytestmark = pytest.mark.ray  # each script starts a Ray of its own
+pytestmark = pytest.mark.usefixtures("ray_session")  # one Ray, which the scripts join
 
 BENCHMARKS = ROOT / "benchmarks"
 SMOKE = str(ROOT / "configs" / "smoke.yaml")
@@ -36,20 +36,11 @@ RAY_SMOKE = {
     "service_speed.py": (["--smoke"], "batched env runner / PettingZoo path"),
     "run_speed.py": (
         ["--config", SMOKE, "--repeats", "1", "--samples", "300", "--no-warm"]
-        + ["--calib-best-of", "1"],
+        + ["--calib-best-of", "1", "--calib-fraction", "0.02"],
         '"oracle_alone_per_s"',
     ),
 }
 """script → (its arguments at the smoke config's sizes, a piece of what it must print)"""
-
-
-@pytest.fixture(autouse=True)
-def no_ray_left():
-    """A script that failed half-way leaves no Ray behind for the next test."""
-    yield
-    import ray
-
-    ray.shutdown()
 
 
 def _run(name: str, argv: list[str], monkeypatch, capsys) -> str:
