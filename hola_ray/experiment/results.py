@@ -141,7 +141,7 @@ def verdict_sentence(
     pool: str = "het",
     metric: str = "success",
 ) -> dict[str, Any]:
-    """The verdict fixed before the experiment (docs/comparison-3v2.md, "The analysis"), in
+    """The verdict fixed before the experiment (results/NOTEBOOK.md, "The analysis"), in
     one sentence: `method` − X on `metric` with `pool` is ahead (or behind) where its 95 %
     interval excludes 0, else a tie, for every X it is paired with; beside it the smallest
     difference the design detects and whether every interval not above zero is at most

@@ -14,7 +14,7 @@ kind="myerson": x = Myerson value (HOLA-Drone); kind="mean_reward": x = mean wei
 node's hyperedges (the HOLA-Drone_R ablation). As MV_i = (d_i / l)·(mean weight of i's
 hyperedges), d_i the number of i's hyperedges, the two kinds give the same φ whenever every
 node has the same degree, G_0 (every l-set of the initial members) among them
-(docs/hola-r.md).
+(results/NOTEBOOK.md, "Why `hola_r` trained exactly like `hola`").
 
 A node with no hyperedge yet takes the lowest value among the nodes that have one, so it
 is among the most sampled; when no node has a hyperedge, φ is uniform.

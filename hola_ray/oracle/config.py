@@ -100,7 +100,7 @@ class OracleConfig:
     one, one update behind it (hola_ray/oracle/overlap.py); needs remote env runners
     (oracle.env_runners ≥ 1). false: RLlib's PPO, sampling and updating in turn. On in
     configs/default.yaml, configs/sp.yaml and the embedded default (1.25–1.41× the learner
-    transitions per second, docs/time_to_competence.md); off in configs/paper.yaml"""
+    transitions per second, results/NOTEBOOK.md); off in configs/paper.yaml"""
     sampler: str = "batched"
     """how env runners sample: batched (hola_ray/oracle/batched_runner.py: every vector env
     in one compiled step, one forward pass per module, episodes built in bulk) or

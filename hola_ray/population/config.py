@@ -57,7 +57,7 @@ class GrapherConfig:
     edges_per_learner: int = 3
     """(l − 1)-sets of members sampled for the learner's hyperedges, as the paper's Grapher
     builds them (§IV-B); 0 = every one, which keeps the hypergraph regular, and then φ
-    from the Myerson value is φ from the mean reward (docs/hola-r.md)"""
+    from the Myerson value is φ from the mean reward (results/NOTEBOOK.md, on hola_r)"""
     workers: int = 2
     """evaluation actors (`hola_ray.population.evaluators`): they play a generation's
     hyperedge chunks side by side, and the monitors while the next generation trains; 0 =
