@@ -19,7 +19,7 @@ def make_dir(path: Path, flag: str = "--out") -> None:
     """Create a run's or an experiment's folder before anything starts; one that cannot be
     (a path through a regular file, no permission, a full disk) is a ConfigError naming the
     path and why."""
-    from hola_ray.env.config import ConfigError
+    from hola_ray.config.reader import ConfigError
 
     try:
         Path(path).mkdir(parents=True, exist_ok=True)
@@ -47,7 +47,7 @@ def require_free_port(port: int | None, flag: str) -> None:
     import os
     import socket
 
-    from hola_ray.env.config import ConfigError
+    from hola_ray.config.reader import ConfigError
 
     if port is None or os.environ.get("RAY_ADDRESS"):
         return
@@ -75,7 +75,7 @@ def apply_sets(data: dict, assignments: list[str] | None) -> dict:
     assignment when it is not `path=value`; the config's own checks judge the value."""
     import copy
 
-    from hola_ray.env.checks import yaml_value
+    from hola_ray.config.reader import yaml_value
 
     out = copy.deepcopy(dict(data))
     for text in assignments or ():

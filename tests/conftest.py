@@ -174,7 +174,7 @@ import sys
 import numba
 import numpy as np
 from hola_ray.env import _kernels
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.policies.registry import make_policy
 c = PursuitConfig()

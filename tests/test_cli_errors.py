@@ -9,7 +9,7 @@ import shutil
 import pytest
 import torch
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.pools import POOLS_DIR
 from hola_ray.policies.learned import random_export
 

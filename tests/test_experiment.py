@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 import yaml
 
-from hola_ray.env.config import ConfigError, PursuitConfig
+from hola_ray.config.reader import ConfigError
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.experiment import Experiment, aggregate, deep_merge, trial_state
 from hola_ray.methods.config import METHODS
 from hola_ray.population.rundir import metrics_differences
@@ -298,7 +299,7 @@ def test_a_variant_is_a_named_method_with_its_own_overrides(tmp_path):
     """Ablation rows: `hola_long: {method: hola, …}` trains method hola with its overrides,
     under its own name; an unknown method or a name that would break trial names is an
     error before anything runs."""
-    from hola_ray.env.config import ConfigError
+    from hola_ray.config.reader import ConfigError
 
     config = {
         "base": str(ROOT / "configs" / "smoke.yaml"),
@@ -343,7 +344,7 @@ def test_the_evaluation_plays_the_trials_scenario_with_one_reward():
     different scenarios are refused."""
     from types import SimpleNamespace
 
-    from hola_ray.env.config import RewardConfig
+    from hola_ray.config.scenario import RewardConfig
     from hola_ray.experiment.runner import Runner
 
     game = PursuitConfig(n_evaders=1, horizon=300, observe_headings=True)

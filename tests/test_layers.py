@@ -1,6 +1,7 @@
 """The package's layers, read from its imports (function-level and type-only ones too).
 
-Floors, lowest first: env and hypergraph → policies → evaluation → oracle ∥ population →
+Floors, lowest first: config (the reader and every section's dataclass) → env and
+hypergraph → policies → evaluation → oracle ∥ population →
 methods → experiment → the commands (`hola_ray.commands`, with `hola_ray.run` and
 `hola_ray.__main__` their entries; flight beside oracle and population). A package imports
 only packages on lower floors, plus the shared helpers (`cli`, `clock`, `homes`,
@@ -19,15 +20,16 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1] / "hola_ray"
 
 FLOORS = {
-    "env": 0,
-    "hypergraph": 0,
-    "policies": 1,
-    "evaluation": 2,
-    "oracle": 3,
-    "population": 3,
-    "flight": 3,
-    "methods": 4,
-    "experiment": 5,
+    "config": 0,
+    "env": 1,
+    "hypergraph": 1,
+    "policies": 2,
+    "evaluation": 3,
+    "oracle": 4,
+    "population": 4,
+    "flight": 4,
+    "methods": 5,
+    "experiment": 6,
 }
 """Package → floor; a package imports only packages on lower floors."""
 

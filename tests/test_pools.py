@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.pools import (
     FORMAT as POOL_FORMAT,
 )
@@ -136,7 +136,7 @@ def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):
     `load_validation`."""
     from pathlib import Path
 
-    from hola_ray.env.config import ConfigError
+    from hola_ray.config.reader import ConfigError
     from hola_ray.evaluation.pools import (
         EVALUATION_POOLS,
         POOLS_DIR,
@@ -181,11 +181,11 @@ def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):
     with pytest.raises(PoolError, match="an evaluation pool member's"):
         load_validation(sneaky, ONE)
 
-    from hola_ray.methods import config as run_config
+    from hola_ray.config import run as run_config
 
     assert run_config.EVALUATION_POOLS == tuple(EVALUATION_POOLS)  # what a config refuses
     root = Path(__file__).resolve().parents[1] / "hola_ray"
-    for package in ("methods", "oracle", "population"):
+    for package in ("config", "methods", "oracle", "population"):
         for source in (root / package).rglob("*.py"):
             text = source.read_text().replace("homes.read_manifest(", "")  # populations'
             for word in ("load_pool(", "read_manifest(", "POOLS_DIR", "import pools"):

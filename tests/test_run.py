@@ -16,7 +16,7 @@ import torch
 import yaml
 
 from hola_ray.commands import run, status
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.methods.config import RunConfig
 from hola_ray.policies.learned import MLPPolicy

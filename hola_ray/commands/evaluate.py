@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from hola_ray.cli import OneLineParser, fail
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.compare import METRICS
 from hola_ray.evaluation.players import EvaluationError, load_learner, pools
 from hola_ray.evaluation.pools import EVALUATION_POOLS, PoolError

@@ -29,7 +29,8 @@ from pathlib import Path
 from typing import Any
 
 from hola_ray.cli import OneLineParser, fail
-from hola_ray.env.config import ConfigError, PursuitConfig
+from hola_ray.config.reader import ConfigError
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.flight.guard import Guard
 
 INSTALL = "pip install -e '.[deploy]'"

@@ -17,7 +17,8 @@ import dataclasses
 from pathlib import Path
 
 from hola_ray.cli import OneLineParser, fail
-from hola_ray.env.config import ConfigError, PursuitConfig
+from hola_ray.config.reader import ConfigError
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.render import animate_trajectory, plot_trajectory
 from hola_ray.evaluation.trajectory import record
 from hola_ray.policies.base import Policy

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from hola_ray import interrupt
 from hola_ray.cli import OneLineParser, apply_sets, make_dir, port, require_free_port
-from hola_ray.env.config import ConfigError, load_yaml, located
+from hola_ray.config.reader import ConfigError, load_yaml, located
 from hola_ray.homes import RUNS
 
 if TYPE_CHECKING:

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env import _kernels, _rng
-from hola_ray.env.config import PursuitConfig
 
 INITIAL_STATE_KEYS = ("pursuer_pos", "pursuer_heading", "evader_pos", "evader_heading")
 """The keys an initial-state override may hold (any subset)."""

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.evaluation.pools import POOLS, PoolError, load_pool
 from hola_ray.evaluation.rollout import PolicyError

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from hola_ray import homes
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.homes import MANIFEST
 from hola_ray.policies.base import Policy
 from hola_ray.policies.registry import load_policy, make_policy

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.policies.base import Policy, seated

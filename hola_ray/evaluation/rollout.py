@@ -9,7 +9,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 import torch
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.evaluation.metrics import TEAM
 from hola_ray.evaluation.stats import episode_seeds as derive_seeds

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from hola_ray import homes
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.compare import figures
 from hola_ray.evaluation.pools import POOLS_DIR, PoolError, load_validation
 from hola_ray.evaluation.teams import play

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from hola_ray.cli import OneLineParser, fail
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.metrics import TEAM
 from hola_ray.evaluation.pools import PoolError, load_pool
 from hola_ray.evaluation.rollout import rollout

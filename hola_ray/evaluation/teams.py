@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.compare import FIELDS
 from hola_ray.evaluation.metrics import zero_shot_values
 from hola_ray.evaluation.rollout import rollout

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.compare import FIELDS, METRICS, compare
 from hola_ray.evaluation.pools import pool_dir
 from hola_ray.evaluation.rollout import rollout

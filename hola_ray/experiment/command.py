@@ -27,7 +27,7 @@ def main(argv: list[str] | None = None) -> int:
     # imported here and in the helpers, not above: `script` re-runs the command under the
     # fixed hash seed before torch, Ray and RLlib (which the experiment's methods import) load
     from hola_ray.cli import require_free_port
-    from hola_ray.env.config import ConfigError
+    from hola_ray.config.reader import ConfigError
     from hola_ray.experiment.runner import Runner
 
     try:
@@ -78,7 +78,7 @@ def _experiment_and_dir(args: argparse.Namespace) -> tuple[Experiment, Path]:
     YAML and a fresh directory (made here, so that an --out that cannot be made fails
     before Ray starts). A ConfigError says what of the command line does not fit."""
     from hola_ray.cli import make_dir
-    from hola_ray.env.config import ConfigError
+    from hola_ray.config.reader import ConfigError
     from hola_ray.experiment.config import CONFIG_NAME, Experiment
     from hola_ray.homes import RUNS
 

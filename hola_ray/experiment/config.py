@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hola_ray.env.checks import (
+from hola_ray.config.reader import (
     ConfigError,
     checked,
     consume_fields,

@@ -10,7 +10,7 @@ from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from hola_ray.env.config import PursuitConfig, RewardConfig
+from hola_ray.config.scenario import PursuitConfig, RewardConfig
 from hola_ray.experiment.config import Experiment, parse_trial
 from hola_ray.experiment.report import budget_spent, write_results
 from hola_ray.experiment.results import EVALUATION_FORMAT, _atomic_json, build_label

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 
 
 @dataclass(frozen=True)

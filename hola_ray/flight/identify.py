@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.flight.dynamics import HEIGHT
 from hola_ray.flight.world import Quadrotors
 

@@ -11,7 +11,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.render import PURSUER_COLOURS, draw_arena, draw_trajectory
 from hola_ray.env.trajectory import Trajectory
 from hola_ray.evaluation.trajectory import record

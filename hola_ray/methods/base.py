@@ -14,9 +14,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from hola_ray.config.oracle import Seating
 from hola_ray.methods.context import Context
 from hola_ray.methods.pretrain import Built, pretrain_population, shipped_members
-from hola_ray.oracle.config import Seating
 from hola_ray.population.rules import Uniform
 from hola_ray.population.state import Decision
 

@@ -8,11 +8,11 @@ import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
-from hola_ray.env.checks import positive_int, require
+from hola_ray.config.oracle import Seating
+from hola_ray.config.reader import positive_int, require
 from hola_ray.methods.base import Method, Origin
 from hola_ray.methods.context import Context
 from hola_ray.methods.pretrain import Built, summed
-from hola_ray.oracle.config import Seating
 from hola_ray.oracle.mapping import LEARNER
 
 if TYPE_CHECKING:

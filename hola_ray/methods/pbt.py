@@ -12,9 +12,9 @@ from typing import TYPE_CHECKING, ClassVar
 
 import ray
 
-from hola_ray.env.checks import finite_in, require
+from hola_ray.config.reader import finite_in, require
+from hola_ray.config.run import PRETRAIN_SCHEMES
 from hola_ray.methods.base import Method, Origin
-from hola_ray.methods.config import PRETRAIN_SCHEMES
 from hola_ray.methods.context import Context
 from hola_ray.methods.pretrain import Built, pretrain_population
 from hola_ray.oracle.mapping import LEARNER

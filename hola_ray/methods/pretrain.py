@@ -9,7 +9,7 @@ import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from hola_ray.oracle.config import Seating
+from hola_ray.config.oracle import Seating
 from hola_ray.population.evaluators import evaluate_teams
 
 if TYPE_CHECKING:

@@ -2,7 +2,7 @@
 one applies RLlib's fixes (`hola_ray.third_party`) in the driver and in each of its env runners.
 
 `Oracle` is imported from `trainer` on first use, so that reading a run
-config (`hola_ray.oracle.config`) does not import RLlib: a command validates its config
+config (`hola_ray.config.oracle`) does not import RLlib: a command validates its config
 first, then imports RLlib while Ray starts (`hola_ray.run`)."""
 
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module

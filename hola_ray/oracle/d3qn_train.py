@@ -25,7 +25,7 @@ from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 from ray.tune.registry import register_env
 
-from hola_ray.env.checks import (
+from hola_ray.config.reader import (
     ConfigError,
     checked,
     consume_fields,
@@ -36,7 +36,7 @@ from hola_ray.env.checks import (
     require,
     widths,
 )
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.horizon import horizon_is_truncation
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.policies.d3qn import D3QNG, FORMAT, PairActor, dacoop_state, state_dim

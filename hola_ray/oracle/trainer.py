@@ -30,18 +30,18 @@ from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, NUM_ENV_STEPS_SAMPLED_LI
 from ray.tune.registry import register_env
 
 from hola_ray import interrupt, third_party
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.oracle import OracleConfig, Seating
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.horizon import horizon_is_truncation
 from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.evaluation.probe import reference_observations
 from hola_ray.oracle.batched_runner import BatchedEnvRunner
-from hola_ray.oracle.config import OracleConfig, Seating
 from hola_ray.oracle.learner import OracleLearner
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitCatalog, PursuitPPOModule
 from hola_ray.oracle.overlap import OverlappedPPO
 from hola_ray.oracle.stats import TrainStats
-from hola_ray.policies.learned import MLPPolicy
+from hola_ray.policies.learned import MLPPolicy, export_trained
 from hola_ray.progress import progress as progress_bar
 
 ENV_NAME = "hola_ray_pursuit"
@@ -448,7 +448,7 @@ class Oracle:
 
     def export_state(self, state: ModuleState) -> dict[str, Any]:
         """The plain-torch export of an RLlib module state of this Oracle's modules."""
-        return self.config.export(state, self.env)
+        return export_trained(self.config, state, self.env)
 
     def policy(self, state: ModuleState) -> MLPPolicy:
         """The deterministic policy that everything outside the Oracle plays."""

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 
 
 class Policy(ABC):

@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from hola_ray.env.config import PursuitConfig
-from hola_ray.env.layout import ObsLayout
+from hola_ray.config.layout import ObsLayout
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.policies.base import Policy
 from hola_ray.policies.learned import BETA_MAX_CONCENTRATION, MLPPolicy
 

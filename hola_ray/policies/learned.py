@@ -27,7 +27,8 @@ import numpy as np
 import torch
 
 from hola_ray import homes
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.oracle import DISTRIBUTIONS, OracleConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.policies.base import Policy
 
 FORMAT = "hola_ray.mlp/2"
@@ -36,8 +37,6 @@ FORMAT = "hola_ray.mlp/2"
 _FORMATS = {"hola_ray.mlp/1": "gaussian", FORMAT: None}
 """Readable export formats → the distribution they imply (None: the export names it)."""
 
-DISTRIBUTIONS = ("beta", "gaussian")
-"""Action distributions an export can hold."""
 
 _ACTIVATIONS = {"tanh": torch.tanh, "relu": torch.relu, "linear": lambda x: x}
 
@@ -69,6 +68,20 @@ def beta_concentrations(logits: torch.Tensor) -> tuple[torch.Tensor, torch.Tenso
     c = (torch.nn.functional.softplus(logits) + 1.0).clamp(max=BETA_MAX_CONCENTRATION)
     c1, c0 = c.chunk(2, dim=-1)
     return c1, c0
+
+
+def export_trained(
+    oracle: OracleConfig, state: Mapping[str, Any], env: PursuitConfig
+) -> dict[str, Any]:
+    """The plain-torch export (`MLPPolicy`) of an RLlib module state trained under the
+    Oracle config `oracle`, with the scenario it was trained in and the commit that trained
+    it."""
+    from hola_ray.provenance import commit_id
+
+    export = export_from_rllib(
+        state, activation="tanh", dist=oracle.action_dist, features=oracle.model_features(env)
+    )
+    return export | {"scenario": env.to_dict(), "commit": commit_id()}
 
 
 def export_from_rllib(

@@ -5,8 +5,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from hola_ray.env.config import PursuitConfig
-from hola_ray.env.layout import ObsLayout
+from hola_ray.config.layout import ObsLayout
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.homes import GENERATION_EXPORT, GENERATION_STATE
 from hola_ray.policies.apf import APFA
 from hola_ray.policies.base import Policy
@@ -115,7 +115,7 @@ def played_scenario(path: str | Path) -> PursuitConfig | None:
     with the default reward, so that every learner's returns are counted alike."""
     import dataclasses
 
-    from hola_ray.env.config import RewardConfig
+    from hola_ray.config.scenario import RewardConfig
 
     trained = trained_scenario(path)
     return None if trained is None else dataclasses.replace(trained, reward=RewardConfig())

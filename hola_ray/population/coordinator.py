@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import ray
 
-from hola_ray.population.config import PopulationConfig
+from hola_ray.config.population import PopulationConfig
 from hola_ray.population.files import TorchFile
 from hola_ray.population.rules import Rules
 from hola_ray.population.rundir import RunDir

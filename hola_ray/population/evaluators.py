@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import ray
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.population.state import EdgeResult
 from hola_ray.process import pin_threads
 

@@ -19,7 +19,7 @@ import ray
 from ray.exceptions import RayActorError
 
 from hola_ray import interrupt
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.population.evaluators import EvaluatorPool, chunks, evaluate_teams
 from hola_ray.population.state import EdgeResult
 from hola_ray.progress import progress as progress_bar

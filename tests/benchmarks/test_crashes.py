@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import episode_seeds

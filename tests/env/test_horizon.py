@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.horizon import horizon_is_truncation
 from hola_ray.env.pettingzoo_env import PursuitEnv
 

@@ -9,7 +9,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hola_ray.env.config import ConfigError, PursuitConfig
+from hola_ray.config.reader import ConfigError
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.flight import Quadrotors
 from hola_ray.flight.identify import identify

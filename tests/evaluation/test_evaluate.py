@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from hola_ray.commands.evaluate import main
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.teams import draw_teams, play
 from hola_ray.evaluation.zero_shot import br_prox, cell_returns, iqm
 from hola_ray.policies.learned import random_export

@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation import mean_and_se, rollout
 from hola_ray.evaluation.table import table_rows
 from hola_ray.evaluation.trajectory import record

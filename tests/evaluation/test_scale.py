@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.compare import compare, normalised
 from hola_ray.evaluation.pools import PoolError
 from hola_ray.evaluation.scale import (

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.flight.guard import Guard
 

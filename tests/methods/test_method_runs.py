@@ -14,7 +14,8 @@ import pytest
 import yaml
 
 from hola_ray.commands import status
-from hola_ray.env.config import ConfigError, PursuitConfig, require
+from hola_ray.config.reader import ConfigError, require
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.methods.base import Method, Origin
 from hola_ray.methods.config import RunConfig

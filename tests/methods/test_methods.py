@@ -10,7 +10,7 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from hola_ray.env.config import ConfigError
+from hola_ray.config.reader import ConfigError
 from hola_ray.methods.config import METHODS, RunConfig
 from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.population.rules import rank_priorities

@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from hola_ray.commands.run import DEFAULT
-from hola_ray.env.config import ConfigError
+from hola_ray.config.reader import ConfigError
 from hola_ray.methods.config import RunConfig
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs"

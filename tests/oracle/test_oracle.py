@@ -343,8 +343,8 @@ def test_self_play_seats_the_learner_in_every_slot():
 def test_mep_in_self_play_seats_one_member_in_every_slot_of_an_episode():
     """MEP pre-training as MEP trains it: every episode is one member's self-play, and every
     member gets episodes."""
+    from hola_ray.config.oracle import Seating
     from hola_ray.oracle import Oracle
-    from hola_ray.oracle.config import Seating
 
     seating = Seating(mep_members=3, mep_alpha=0.05, mep_self_play=True)
     oracle = Oracle(CONFIG.env, CONFIG.oracle, seating, seed=0)

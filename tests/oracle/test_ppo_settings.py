@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from ray.rllib.utils.schedules.scheduler import Scheduler
 
-from hola_ray.oracle.config import OracleConfig
+from hola_ray.config.oracle import OracleConfig
 
 
 def test_the_learning_rate_decays_linearly_as_rllib_reads_a_schedule():

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.policies.apf import APFA
 from hola_ray.policies.d3qn import D3QNG, PairActor, dacoop_state
@@ -272,7 +272,7 @@ def test_the_export_is_chosen_by_the_rule_written_in_the_config():
 )
 def test_a_malformed_d3qn_config_is_one_line_naming_file_line_and_field(tmp_path, text, message):
     """D3QN-G configs are read with the run config's checks (types, then ranges)."""
-    from hola_ray.env.config import ConfigError
+    from hola_ray.config.reader import ConfigError
     from hola_ray.oracle.d3qn_train import D3QNRun
 
     path = tmp_path / "d3qn.yaml"

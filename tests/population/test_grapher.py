@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import ray
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.policies.learned import MLPPolicy, random_export

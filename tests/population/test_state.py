@@ -50,7 +50,7 @@ def test_an_adopted_generation_zero_takes_the_runs_own_m_and_size():
     """A generation 0 adopted from a build with m 2 and room for 4 (its state.json) plays
     the run's open-ended phase: the run's m 3 and size 6, so the worked example's candidate
     (rank 3) joins, into a free slot; a run too small for the members is refused."""
-    from hola_ray.population.config import PopulationConfig
+    from hola_ray.config.population import PopulationConfig
     from hola_ray.population.coordinator import saved_population
 
     built = worked_example(max_size=4, top_m=2)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hola_ray.env.checks import finite_in, positive_int, require
+from hola_ray.config.reader import finite_in, positive_int, require
 
 
 @dataclass(frozen=True)

@@ -13,20 +13,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hola_ray.env.checks import (  # noqa: F401 - the readers' names, here as before
+from hola_ray.config.layout import ObsLayout
+from hola_ray.config.reader import (
     ConfigError,
     _is_number,
-    checked,
     consume_fields,
-    finite_in,
-    line_of,
     load_yaml,
     located,
-    positive_int,
     require,
-    yaml_value,
 )
-from hola_ray.env.layout import ObsLayout
 
 Rect = tuple[float, float, float, float]
 """An axis-aligned box as (centre_x, centre_y, width, height), metres."""

@@ -3,14 +3,14 @@ modules: what the Oracle needs and nothing of the method that drives it."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from hola_ray.env.checks import finite_in, positive_int, require, widths
-from hola_ray.env.config import PursuitConfig
-from hola_ray.policies.learned import DISTRIBUTIONS, export_from_rllib
-from hola_ray.provenance import commit_id
+from hola_ray.config.reader import finite_in, positive_int, require, widths
+from hola_ray.config.scenario import PursuitConfig
+
+DISTRIBUTIONS = ("beta", "gaussian")
+"""Action distributions an export can hold (oracle.action_dist)."""
 
 SAMPLERS = ("batched", "pettingzoo")
 """oracle.sampler: how the Oracle's env runners sample (OracleConfig.sampler)."""
@@ -175,14 +175,6 @@ class OracleConfig:
             "indices": env.layout.proximity,
             "gain": env.obs_distance_scale / self.proximity_length,
         }
-
-    def export(self, state: Mapping[str, Any], env: PursuitConfig) -> dict[str, Any]:
-        """The plain-torch export (`MLPPolicy`) of an RLlib module state trained under this
-        config, with the scenario it was trained in and the commit that trained it."""
-        export = export_from_rllib(
-            state, activation="tanh", dist=self.action_dist, features=self.model_features(env)
-        )
-        return export | {"scenario": env.to_dict(), "commit": commit_id()}
 
 
 @dataclass(frozen=True)
