@@ -123,7 +123,7 @@ class Measured:
 def trial_seconds(config, basis: Measured) -> dict[str, float]:
     """A trial of `config` in reference seconds, from a measured run's rates."""
     zero = 0.0
-    if config.pretrain.population == "none" and not config.strategy.self_play:
+    if config.pretrain.population == "none" and not config.strategy.trains_alone():
         steps = basis.pretrain_env_steps
         scale = config.pretrain.env_steps / steps if steps else 1.0
         grows = basis.zero_s if basis.pretrain_s is None else min(basis.pretrain_s, basis.zero_s)

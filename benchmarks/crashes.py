@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
 from hola_ray.env.geometry import wrap
 from hola_ray.evaluation.stats import episode_seeds

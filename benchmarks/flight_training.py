@@ -25,7 +25,7 @@ import sys
 import numpy as np
 
 from hola_ray.commands.fly import columns
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.pools import validation_mates
 from hola_ray.flight import Guard
 from hola_ray.policies.learned import MLPPolicy

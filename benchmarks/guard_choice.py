@@ -20,7 +20,7 @@ import sys
 
 import numpy as np
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.pools import validation_mates
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.flight import Crazyflies, Guard

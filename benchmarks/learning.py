@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.probe import reference_observations
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.methods.config import RunConfig

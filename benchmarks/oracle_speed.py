@@ -32,8 +32,8 @@ SEATINGS = ("self-play", "partners", "mep-pretrain")
 
 
 def oracle_for(config, seating: str):
+    from hola_ray.config.oracle import Seating
     from hola_ray.oracle import LEARNER, Oracle
-    from hola_ray.oracle.config import Seating
     from hola_ray.oracle.mapping import member_module
 
     c = config

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import ray
 
+from hola_ray.config.oracle import SAMPLERS
 from hola_ray.homes import ROOT
-from hola_ray.methods.config import SAMPLERS
 from hola_ray.process import join_or_init_ray
 
 

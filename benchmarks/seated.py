@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hola_ray.env.config import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import episode_seeds, mean_and_se
 from hola_ray.policies.registry import load_policy, make_policy, trained_scenario

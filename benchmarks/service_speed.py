@@ -33,7 +33,8 @@ import torch
 
 from hola_ray.clock import column
 from hola_ray.commands.run import DEFAULT
-from hola_ray.methods.config import SAMPLERS, RunConfig
+from hola_ray.config.oracle import SAMPLERS
+from hola_ray.methods.config import RunConfig
 from hola_ray.policies.learned import FORMAT
 from hola_ray.population.evaluators import EvaluatorPool
 from hola_ray.population.grapher import evaluate_edges

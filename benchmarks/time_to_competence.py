@@ -278,8 +278,8 @@ def main(argv: list[str] | None = None) -> dict:
     import torch
 
     from hola_ray.commands.run import read_config
+    from hola_ray.config.oracle import Seating
     from hola_ray.oracle import LEARNER, Oracle
-    from hola_ray.oracle.config import Seating
     from hola_ray.oracle.mapping import member_module
     from hola_ray.process import init_ray
 

@@ -219,8 +219,8 @@ def main(argv: list[str] | None = None) -> dict:
     import torch
 
     from hola_ray.commands.run import read_config
+    from hola_ray.config.oracle import Seating
     from hola_ray.oracle import Oracle
-    from hola_ray.oracle.config import Seating
     from hola_ray.process import join_or_init_ray
 
     config = read_config(args.config, args.sets)

@@ -137,7 +137,7 @@ def plot_progress(run_dir: Path) -> Path:
         list(csv.DictReader(run.iterations_csv.open())) if run.iterations_csv.is_file() else []
     )
     _iteration_panels(iterations, axes[1, 0], axes[1, 1])
-    if RunConfig.from_yaml(run.config).strategy.self_play:  # no population, no φ
+    if RunConfig.from_yaml(run.config).strategy.trains_alone():  # no population, no φ
         _length_panel(rows, axes[1, 2])
     else:
         _phi_panel(rows, axes[1, 2])

@@ -49,11 +49,6 @@ class Method:
 
     name: str
     description: str
-    self_play: ClassVar[bool] = False
-    """the learner in every seat: no population, no pre-training, no Grapher; the learner
-    is judged by its own team's rollout"""
-    joins: ClassVar[bool] = True
-    """the learner may join the population (False: a best response to a fixed one)"""
     origin: ClassVar[Origin] = Origin()
     """where its generation 0 comes from"""
     section: ClassVar[tuple[str, type] | None] = None
@@ -66,13 +61,23 @@ class Method:
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.name!r})"
 
+    # ---- what the method is -------------------------------------------------------------
+    def trains_alone(self) -> bool:
+        """The learner fills every seat (self-play): no population, no pre-training, no
+        Grapher, no partners seated; it is judged by its own team's rollout."""
+        return False
+
+    def may_join(self) -> bool:
+        """The learner may join the population (False: a best response to a fixed one)."""
+        return True
+
     # ---- configuration ------------------------------------------------------------------
     def validate(self, config: RunConfig) -> None:
         """Checks that span sections (ConfigError naming the field)."""
 
     def seating(self, config: RunConfig) -> Seating:
         """How the Oracle seats the learner each generation."""
-        if self.self_play:
+        if self.trains_alone():
             return Seating()
         return Seating(partners=config.population.max_size)
 
@@ -90,7 +95,7 @@ class Method:
 
     def rules(self, config: RunConfig) -> Any:
         """The coordinator's `Rules` for this run (`hola_ray.population.rules`)."""
-        return Uniform(admit=self.joins)
+        return Uniform(admit=self.may_join())
 
     def rival(self, config: RunConfig) -> Any:
         """`Rules` whose φ each generation's φ is compared with, on the same hypergraph
@@ -125,6 +130,6 @@ class Method:
             return f"accepted as node {decision.candidate} (rank {decision.rank}" + (
                 f", replaces {decision.replaced})" if decision.replaced is not None else ")"
             )
-        if not self.joins:
+        if not self.may_join():
             return f"population fixed ({self.name}: a best response; η rank {decision.rank})"
         return f"rejected (rank {decision.rank} > top {config.population.top_m})"

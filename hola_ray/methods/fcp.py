@@ -35,9 +35,11 @@ class FCPConfig:
 
 
 class FCP(Method):
-    joins: ClassVar[bool] = False
     origin: ClassVar[Origin] = Origin(kind="fcp")
     section = ("fcp", FCPConfig)
+
+    def may_join(self) -> bool:
+        return False
 
     def member_roles(self, nodes: list[int]) -> dict[int, str]:
         """Its agents' start, middle and end checkpoints, in node order."""

@@ -75,7 +75,7 @@ def _resolve(config: RunConfig, run: RunDir, adopt_from: Sequence[Path]) -> Gene
     start = _learner_start(c)
     if run.last_completed() is not None:
         return GenerationZero("resume", start)
-    if method.self_play:
+    if method.trains_alone():
         return GenerationZero("none", start)
     if c.pretrain.shipped and method.origin.kind is not None:
         return _shipped(c, start)

@@ -14,8 +14,10 @@ if TYPE_CHECKING:
 
 
 class MEP(Method):
-    joins: ClassVar[bool] = False
     origin: ClassVar[Origin] = Origin(shared=True)
+
+    def may_join(self) -> bool:
+        return False
 
     def rules(self, config: RunConfig) -> RankPriority:
         return RankPriority(config.population.rank_beta)

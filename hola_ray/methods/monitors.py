@@ -184,7 +184,7 @@ class Monitoring:
         calls: list[tuple] = []
         if members is not None:
             calls.append((population, c, g, dict(members), dict(self.known)))
-        if learner is not None and c.strategy.self_play:
+        if learner is not None and c.strategy.trains_alone():
             calls.append((self_play, c, g, dict(learner)))
         if learner is not None and c.validation.enabled:
             calls.append((validation, c, dict(learner)))

@@ -8,9 +8,13 @@ from hola_ray.methods.base import Method, Origin
 
 
 class SelfPlay(Method):
-    self_play: ClassVar[bool] = True
-    joins: ClassVar[bool] = False
     origin: ClassVar[Origin] = Origin(kind=None)
+
+    def trains_alone(self) -> bool:
+        return True
+
+    def may_join(self) -> bool:
+        return False
 
 
 SP = SelfPlay("sp", "self-play: one trained module in every seat")

@@ -122,7 +122,7 @@ class Trainer:
                 # Oracle is built while the coordinator and evaluation actors start
                 with clock.phase("oracle_build"):
                     oracle = method.make_oracle(c)
-            if last is None and method.self_play:
+            if last is None and method.trains_alone():
                 last = 0  # no population to pre-train: generation 1 is the first
             elif last is None:
                 self._pretrain()
@@ -242,7 +242,7 @@ class Trainer:
         start = time.perf_counter()
         with clock.phase("seat"):
             slot = method.before_training(self.context(), g, oracle)
-            if not method.self_play:
+            if not method.trains_alone():
                 oracle.seat(
                     ray.get(self.coord.plan.remote(slot)),
                     self.member_states,
@@ -261,7 +261,7 @@ class Trainer:
         oracle_s = time.perf_counter() - start
         self._complete()  # the previous generation's monitors, played while this one trained
 
-        if method.self_play:
+        if method.trains_alone():
             judged, decision = {}, None
         else:
             judged, decision = self._judge_in_population(g, export, learner_state, slot)
@@ -292,7 +292,7 @@ class Trainer:
         self._submit_monitors(g, export)
         judged_as = (
             ""
-            if method.self_play
+            if method.trains_alone()
             else f"learner success {row['learner_success']:.0%} ± "
             f"{row['learner_success_se']:.0%}, collision {row['learner_collision']:.0%}, "
             f"return {row['learner_return']:.1f}; {method.verdict(c, decision)}; "
@@ -310,7 +310,7 @@ class Trainer:
         """Start generation g's monitors (`hola_ray.methods.monitors`) of its learner's
         export and of the population as the coordinator holds it now."""
         members = None
-        if not self.config.strategy.self_play:
+        if not self.config.strategy.trains_alone():
             nodes = sorted(ray.get(self.coord.slots.remote()))
             members = self.exports(nodes)
         self.coord.set_phase.remote("monitors")

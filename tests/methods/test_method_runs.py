@@ -590,9 +590,11 @@ class AlwaysTheFavourite:
 
 
 class Favourite(Method):
-    joins = False
     origin = Origin(shared=True)  # MEP's population, as Method builds it by default
     section = ("favourite", FavouriteConfig)
+
+    def may_join(self) -> bool:
+        return False
 
     def rules(self, config: RunConfig) -> AlwaysTheFavourite:
         return AlwaysTheFavourite(config.favourite.slot)

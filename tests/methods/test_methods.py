@@ -123,7 +123,7 @@ def test_every_method_is_configured_by_its_name_alone():
     for name, method in METHODS.items():
         config = RunConfig(method=name)
         assert config.strategy is method
-        assert config.strategy.self_play == (name == "sp")
+        assert config.strategy.trains_alone() == (name == "sp")
     with pytest.raises(ConfigError, match=r"fcp.agents must be such that l = 3 <= 3 · fcp.agents"):
         RunConfig.from_dict({"method": "fcp", "fcp": {"agents": 4}})
 
