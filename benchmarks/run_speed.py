@@ -33,6 +33,17 @@ ROOT = Path(__file__).resolve().parents[1]
 T975 = (float("nan"), 12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262)
 
 
+def joining() -> dict[str, str]:
+    """The commands' environment: where this process holds a Ray (the test suite's), they
+    join it as they would a cluster (RAY_ADDRESS) instead of each starting their own."""
+    import ray
+
+    env = dict(os.environ)
+    if ray.is_initialized():
+        env["RAY_ADDRESS"] = ray.get_runtime_context().gcs_address
+    return env
+
+
 def calibrate(best_of: int = 5, fraction: float = 1.0) -> float:
     command = [sys.executable, str(ROOT / "benchmarks" / "calib.py"), "--best-of", str(best_of)]
     out = subprocess.run(
@@ -52,7 +63,7 @@ def whole_run(tree: Path, out: Path, sets: list[str], config: Path | None = None
     for s in sets:
         command += ["--set", s]
     start = time.perf_counter()
-    done = subprocess.run(command, cwd=tree, capture_output=True, text=True)
+    done = subprocess.run(command, cwd=tree, capture_output=True, text=True, env=joining())
     wall = time.perf_counter() - start
     if done.returncode != 0:
         raise RuntimeError(f"the run failed in {tree}:\n{done.stderr[-3000:]}")
@@ -81,7 +92,7 @@ def oracle_alone(tree: Path, samples: int, sets: list[str], config: Path | None 
         command += ["--set", s]
     # the tree's own package, not the one installed in the venv (a script's folder, not
     # its working directory, heads sys.path)
-    env = {**os.environ, "PYTHONPATH": str(tree)}
+    env = {**joining(), "PYTHONPATH": str(tree)}
     done = subprocess.run(command, cwd=tree, capture_output=True, text=True, env=env)
     if done.returncode != 0:
         raise RuntimeError(f"oracle_speed failed in {tree}:\n{done.stderr[-3000:]}")
