@@ -74,8 +74,6 @@ class Trainer:
         self.monitoring = Monitoring(c, self.pool if c.grapher.workers else None)
         self.clock = PhaseClock(self.started)
         """the time of the metrics row in progress, by phase"""
-        self.start_node: int | None = None
-        """the member the learner started from (`pretrain.learner_start: member`)"""
 
     # ---- entry --------------------------------------------------------------------------
     def fit(self) -> list[dict[str, Any]]:
@@ -141,9 +139,9 @@ class Trainer:
                     with clock.phase("oracle_build"):
                         oracle = method.make_oracle(c)
                 with clock.phase("seat"):
-                    self._seat_learner(oracle, last)
+                    started_from = self._seat_learner(oracle, last)
                 for g in range(last + 1, self.config.generations + 1):
-                    self._generation(g, oracle)
+                    self._generation(g, oracle, started_from if g == 1 else None)
                     written.append(g)
                     self._saved(g)
             if oracle is not None:  # its processes go while the last monitors play
@@ -176,19 +174,21 @@ class Trainer:
         )
         self.coord = start_coordinator(self.run.root, settings)
 
-    def _seat_learner(self, oracle: Oracle, last: int) -> None:
+    def _seat_learner(self, oracle: Oracle, last: int) -> int | None:
         """The learner's weights after generation `last` (its start before generation 1:
-        `pretrain.learner_start`), and its optimizer's and schedules' state where saved."""
-        learner = self.run.load_learner_state(last)
+        `pretrain.learner_start`), and its optimizer's and schedules' state where saved;
+        returns the member it started from, if it started from one."""
+        learner, started_from = self.run.load_learner_state(last), None
         if learner is None and last == 0:
             start = generation_zero.starting_member(self.zero, self.config, self.coord, self.say)
             if start is not None:
-                self.start_node, learner = start
+                started_from, learner = start
         if learner is not None:
             oracle.set_trained_weights({LEARNER: learner})
         training = self.run.load_training_state(last) if last >= 1 else None
         if training is not None:  # Adam's moments and the schedules go on
             oracle.set_training_state(training)
+        return started_from
 
     # ---- generation 0 -------------------------------------------------------------------
     def _pretrain(self) -> dict[str, Any]:
@@ -235,7 +235,9 @@ class Trainer:
         )
 
     # ---- generations 1.. ----------------------------------------------------------------
-    def _generation(self, g: int, oracle: Oracle) -> None:
+    def _generation(self, g: int, oracle: Oracle, started_from: int | None = None) -> None:
+        """Train generation g (`started_from`: the member generation 1's learner started
+        from, which its row names)."""
         c, method, clock = self.config, self.config.strategy, self.clock
         prev = ray.get(self.coord.view.remote())["last_metrics"]
         self.coord.set_phase.remote("oracle")
@@ -276,7 +278,7 @@ class Trainer:
             "oracle_sample_s": round(stats.sample_s, 2),
             "oracle_learn_s": round(stats.learn_s, 2),
             "oracle_learner_return": stats.module_return.get(LEARNER, float("nan")),
-            **self._start_node(g),
+            **({} if started_from is None else {"learner_start_node": started_from}),
             **{k: round(v, 4) for k, v in stats.spread.items()},
             **judged,
             **clock.close(),
@@ -301,10 +303,6 @@ class Trainer:
             f"gen {g}: {judged_as}std {row.get('std_median', 0):.2f}; "
             f"oracle {oracle_s:.0f}s ({stats.env_steps_per_s:.0f} steps/s)"
         )
-
-    def _start_node(self, g: int) -> dict[str, int]:
-        """Generation 1's row names the member its learner started from, if any."""
-        return {} if g != 1 or self.start_node is None else {"learner_start_node": self.start_node}
 
     def _submit_monitors(self, g: int, export: dict[str, Any] | None) -> None:
         """Start generation g's monitors (`hola_ray.methods.monitors`) of its learner's
