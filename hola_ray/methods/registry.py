@@ -1,4 +1,10 @@
-"""The methods a run config may name: one line per method."""
+"""The methods a run config may name: one line per method.
+
+The registry itself, `METHODS`, is the dict in `hola_ray.methods.config` that `RunConfig`
+checks a config's `method` and sections against; this module fills it when the package is
+imported. It is not a literal here because the method modules name `RunConfig` in their
+signatures: `config` importing this module would close a circle (method → config →
+registry → method), which the layering test refuses, type-only imports included."""
 
 from __future__ import annotations
 
