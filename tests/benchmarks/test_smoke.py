@@ -22,17 +22,17 @@ SMOKE = {
     "myerson.py": ([], "max |diff|"),
     "calib.py": (["--best-of", "1", "--fraction", "0.02"], '"scale"'),
     "env_speed.py": (["--seconds", "0.02"], "batched core B=4096"),
-    "guard_choice.py": (["2", str(LEARNER), "--horizon", "60"], '"validation"'),
+    "guard_choice.py": (["1", str(LEARNER), "--horizon", "30"], '"validation"'),
     "seated.py": (
         [str(LEARNER / "best.pt"), "--teammates", "greedy", "vicsek", "--episodes", "2"],
         "its own seat crashed",
     ),
     "flight_training.py": (
-        ["2", str(LEARNER.parent / "hola-s1"), str(LEARNER), "--horizon", "60"],
+        ["1", str(LEARNER.parent / "hola-s1"), str(LEARNER), "--horizon", "30"],
         "response - kinematic",
     ),
     "flight_gap.py": (
-        [f"{LEARNER}:best", "--episodes", "2", "--horizon", "60"],
+        [f"{LEARNER}:best", "--episodes", "1", "--horizon", "30"],
         "+ Greedy, VICSEK",
     ),
 }
