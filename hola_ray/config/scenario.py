@@ -416,6 +416,11 @@ class PursuitConfig:
         except ConfigError as err:
             raise located(err.within("env") if nested else err, path) from None
 
+    def played(self) -> PursuitConfig:
+        """This scenario as an evaluation plays it: every field kept but the reward, which
+        is the default, so that every learner's returns are counted alike."""
+        return dataclasses.replace(self, reward=RewardConfig())
+
     def to_dict(self) -> dict[str, Any]:
         """A plain, YAML-safe mapping that `from_dict` reads back to an equal config."""
         out = dataclasses.asdict(self)

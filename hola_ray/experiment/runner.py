@@ -3,14 +3,13 @@ of its own, evaluates the learners against the pools and writes the results."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import time
 from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from hola_ray.config.scenario import PursuitConfig, RewardConfig
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.experiment.config import Experiment, parse_trial
 from hola_ray.experiment.report import budget_spent, write_results
 from hola_ray.experiment.results import EVALUATION_FORMAT, _atomic_json, build_label
@@ -264,7 +263,7 @@ class Runner:
         Trials that trained in different scenarios cannot share one evaluation."""
         games: list[PursuitConfig] = []
         for t in self.exp.trials():
-            game = dataclasses.replace(self.configs[t].env, reward=RewardConfig())
+            game = self.configs[t].env.played()
             if game not in games:
                 games.append(game)
         if len(games) > 1:

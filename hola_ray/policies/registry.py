@@ -113,12 +113,8 @@ def trained_scenario(path: str | Path) -> PursuitConfig | None:
 def played_scenario(path: str | Path) -> PursuitConfig | None:
     """The scenario a learner is evaluated in: the one it trained in (`trained_scenario`)
     with the default reward, so that every learner's returns are counted alike."""
-    import dataclasses
-
-    from hola_ray.config.scenario import RewardConfig
-
     trained = trained_scenario(path)
-    return None if trained is None else dataclasses.replace(trained, reward=RewardConfig())
+    return None if trained is None else trained.played()
 
 
 def load_policy(path: str | Path, config: PursuitConfig, name: str | None = None) -> Policy:
