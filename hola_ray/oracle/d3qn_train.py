@@ -275,7 +275,8 @@ def algorithm_config(run: D3QNRun):
             },
         )
         .callbacks(HorizonTruncates)
-        .debugging(seed=run.seed, log_level="ERROR")
+        # as the Oracle's: no system-usage thread polling psutil, which nothing reads
+        .debugging(seed=run.seed, log_level="ERROR", log_sys_usage=False)
     )
 
 

@@ -375,6 +375,8 @@ def test_train_runs_updates_until_its_steps_and_logs_each(local_learner, oracle)
     assert np.all(np.diff([0, *steps]) >= CONFIG.oracle.train_batch)  # whole batches
     assert steps[-2] < 1000 <= steps[-1] == stats.env_steps  # stops once n are sampled
     assert learner.update_s > clock and stats.learn_s == pytest.approx(learner.update_s - clock)
+    # and no system-usage thread beside it (RLlib's default polls psutil every 0.7 s)
+    assert not oracle.algo._monitor.is_alive()
 
 
 def test_the_lean_gradient_step_equals_rllibs_and_frozen_partners_have_no_optimizer(
