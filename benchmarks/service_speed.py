@@ -22,10 +22,10 @@ import argparse
 import dataclasses
 import itertools
 import json
-import multiprocessing
 import statistics
+import subprocess
+import sys
 import tempfile
-import time
 from pathlib import Path
 
 import ray
@@ -57,23 +57,34 @@ def random_export(obs_dim: int, hidden: tuple[int, ...], seed: int) -> dict:
     }
 
 
-def _spin(n: int) -> float:
-    """A pure Python loop: the machine's own scaling from one busy process to two."""
-    start = time.perf_counter()
-    total = 0
-    for i in range(n):
-        total += i * i
-    return time.perf_counter() - start
+SPIN = """
+import sys, time
+start = time.perf_counter()
+total = 0
+for i in range(int(sys.argv[1])):
+    total += i * i
+print(time.perf_counter() - start)
+"""
+"""A pure Python loop that prints its own time (its interpreter's start not counted)."""
+
+
+def _spins(copies: int, n: int) -> float:
+    """The slowest of `copies` loops of `n` run side by side, each in a bare interpreter
+    (no import of this script, Ray or torch: a spawned pool's workers would import them)."""
+    started = [
+        subprocess.Popen([sys.executable, "-c", SPIN, str(n)], stdout=subprocess.PIPE, text=True)
+        for _ in range(copies)
+    ]
+    return max(float(p.communicate()[0]) for p in started)
 
 
 def machine_scaling(rounds: int, n: int = 20_000_000) -> float:
     """Throughput of two busy processes side by side over one alone (2.0 on two free
     cores), the median of `rounds` alternated measurements."""
     ones, twos = [], []
-    with multiprocessing.get_context("spawn").Pool(2) as pool:
-        for _ in range(rounds):
-            ones.append(pool.map(_spin, [n])[0])
-            twos.append(max(pool.map(_spin, [n, n])))
+    for _ in range(rounds):
+        ones.append(_spins(1, n))
+        twos.append(_spins(2, n))
     return 2 * statistics.median(ones) / statistics.median(twos)
 
 

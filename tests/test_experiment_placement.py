@@ -341,10 +341,17 @@ def stamps(trial_dirs: list[Path]) -> dict[str, tuple[bytes, int]]:
     return out
 
 
-def alive(class_name: str) -> list:
-    from ray.util.state import list_actors
+def alive(class_name: str) -> list[str]:
+    """The nodes (ids) of `class_name`'s live actors, from the GCS's actor table: the state
+    API would ask the head's dashboard, which Ray starts best-effort on a `Cluster`'s head
+    and which once was not there on a loaded machine (the test then failed on a lookup)."""
+    from ray._private import state
 
-    return list_actors(filters=[("class_name", "=", class_name), ("state", "=", "ALIVE")])
+    return [
+        actor["Address"]["NodeID"]
+        for actor in state.actors().values()
+        if actor["ActorClassName"] == class_name and actor["State"] == "ALIVE"
+    ]
 
 
 class HalfMirrored(Runner):
@@ -382,7 +389,7 @@ def test_a_worker_node_lost_mid_experiment_loses_nothing(two_nodes, tmp_path):
     # a trial past generation 1: lose every node a trial runs on (a trial's coordinator
     # lives on its node)
     wait_until(lambda: any(1 in RunDir(d).completed() for d in dirs) or not thread.is_alive(), "")
-    hosts = {a.node_id for a in alive("Coordinator")}
+    hosts = set(alive("Coordinator"))
     before = stamps(dirs)
     doomed = [n for n in [*cluster.worker_nodes] if n.node_id in hosts]
     assert doomed and len(doomed) <= len(spare), hosts  # two 2-CPU workers stay
