@@ -36,7 +36,12 @@ RAY_SMOKE = {
     "service_speed.py": (["--smoke"], "batched env runner / PettingZoo path"),
     "run_speed.py": (
         ["--config", SMOKE, "--repeats", "1", "--samples", "300", "--no-warm"]
-        + ["--calib-best-of", "1", "--calib-fraction", "0.02"],
+        + ["--calib-best-of", "1", "--calib-fraction", "0.02"]
+        # the run and the Oracle alone smaller still: a quarter of the smoke config's steps
+        # and episodes (the script's parts are what is tested, not its figures)
+        + ["--set", "pretrain.env_steps=500", "--set", "oracle.env_steps=500"]
+        + ["--set", "oracle.train_batch=250", "--set", "oracle.minibatch=125"]
+        + ["--set", "validation.episodes=3", "--set", "grapher.episodes_per_edge=1"],
         '"oracle_alone_per_s"',
     ),
 }
