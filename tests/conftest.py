@@ -28,6 +28,10 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 # and Ray worker of the suite on one, as `hola_ray.process.pin_threads` puts a Ray worker
 # on its one CPU.
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+# torch inductor (the compiled loss's test) first probes which vector instruction sets the
+# C++ compiler builds, one compile per set (seconds on a fresh machine); told that those
+# the CPU reports build, it skips the probes and compiles the same kernels.
+os.environ.setdefault("TORCHINDUCTOR_VEC_ISA_OK", "1")
 
 
 @pytest.fixture(scope="session")
@@ -176,7 +180,6 @@ import numpy as np
 from hola_ray.env import _kernels
 from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
-from hola_ray.policies.registry import make_policy
 c = PursuitConfig()
 env = BatchedPursuit(c, 4)
 mask = np.ones(4, dtype=bool)
@@ -184,6 +187,8 @@ if sys.argv[1] == "step":
     args = (np.zeros((4, c.n_pursuers)), env._kinematic, env._params, env._arena, env._out)
     _kernels.step_all.compile(tuple(numba.typeof(a) for a in args))
 else:
+    from hola_ray.policies.registry import make_policy  # torch: seconds, for this half only
+
     for kernel in (_kernels.reset_masked, _kernels.observe_all):
         args = (mask, env._params, env._arena, env.obs)
         kernel.compile(tuple(numba.typeof(a) for a in args))
@@ -193,9 +198,9 @@ else:
         policy.act(np.zeros((4, env.layout.dim), dtype=np.float32))
 """
 """The simulator's numba kernels and the hand-written policies', compiled into numba's cache
-by two processes at once (the step: 27 s on a fresh clone; the reset, the observation and
-the policies: 15 s), while the workers start: otherwise each worker and each Ray worker
-compiles them all itself (34 s each)."""
+by two processes at once (the step, the longer; the reset, the observation and the
+policies), while the workers start: otherwise each worker and each Ray worker compiles
+them all itself."""
 
 _WARMING: list[subprocess.Popen] = []
 

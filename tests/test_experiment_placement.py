@@ -30,7 +30,10 @@ ROOT = Path(__file__).resolve().parent.parent
 @pytest.fixture(scope="module", autouse=True)
 def two_nodes():
     lean_local_ray(log_monitor=False)  # its head's agent on a free port (another Ray runs)
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0})
+    # no dashboard: Ray starts one best-effort on a Cluster's head, and where another
+    # Ray of the suite holds its port the start waited out Ray's 60 s for it
+    head = {"num_cpus": 0, "include_dashboard": False}
+    cluster = Cluster(initialize_head=True, head_node_args=head)
     for _ in range(2):
         cluster.add_node(num_cpus=2)
     cluster.wait_for_nodes()
@@ -342,9 +345,8 @@ def stamps(trial_dirs: list[Path]) -> dict[str, tuple[bytes, int]]:
 
 
 def alive(class_name: str) -> list[str]:
-    """The nodes (ids) of `class_name`'s live actors, from the GCS's actor table: the state
-    API would ask the head's dashboard, which Ray starts best-effort on a `Cluster`'s head
-    and which once was not there on a loaded machine (the test then failed on a lookup)."""
+    """The nodes (ids) of `class_name`'s live actors, from the GCS's actor table (the state
+    API would ask the head's dashboard, which this module's cluster does not start)."""
     from ray._private import state
 
     return [

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit, prange
 
 from hola_ray.env import _rng
@@ -110,8 +111,9 @@ def reset_masked(mask, p, s, obs):
     """Reset every episode b with mask[b] and write its first observation."""
     for b in prange(mask.shape[0]):
         if mask[b]:
-            reset_episode(b, p, s)
-            observe(b, p, s, obs)
+            e = np.uint64(b)  # one compiled callee, not two (see step_all)
+            reset_episode(e, p, s)
+            observe(e, p, s, obs)
 
 
 # ---- observation --------------------------------------------------------------------------
@@ -408,9 +410,14 @@ def step_episode(b, actions, placed, p, s, out):
 
 @njit(cache=True, parallel=True)
 def step_all(actions, placed, p, s, out):
-    """Advance every episode of the batch by one step, in parallel over episodes."""
+    """Advance every episode of the batch by one step, in parallel over episodes.
+
+    The callee gets the episode as uint64: numba types a prange body twice, the loop as
+    written (an int64 index) and the parallel loop it runs (a uint64 one), and would compile
+    every callee for both, the int64 copy never run. Cast, it compiles one (the copy that
+    runs), in half the time."""
     for b in prange(actions.shape[0]):
-        step_episode(b, actions, placed, p, s, out)
+        step_episode(np.uint64(b), actions, placed, p, s, out)
 
 
 @njit(cache=True, parallel=True)
@@ -418,4 +425,4 @@ def observe_all(mask, p, s, obs):
     """Recompute the observation of every episode b with mask[b]."""
     for b in prange(mask.shape[0]):
         if mask[b]:
-            observe(b, p, s, obs)
+            observe(np.uint64(b), p, s, obs)  # one compiled callee (see step_all)
