@@ -227,8 +227,8 @@ class Oracle:
             )
             .callbacks(_RepushOnRecreate)
             .fault_tolerance(restart_failed_env_runners=True)
-            # no system-usage thread: it polls psutil every 0.7 s, which nothing here
-            # reads, and each stop waits for its sleep to end (0.4 s per Oracle built)
+            # no system-usage thread: it polls psutil, which nothing here reads, and each
+            # stop waits for its sleep to end
             .debugging(seed=seed, log_level="ERROR", log_sys_usage=False)
             .reporting(metrics_num_episodes_for_smoothing=20)
         )
