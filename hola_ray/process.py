@@ -125,6 +125,48 @@ def init_ray_importing(module: str, *args: Any) -> tuple[str | None, ModuleType]
         return url, imported.result()
 
 
+COLLECTOR_PAUSE_S = 30.0
+"""The longest a process's start runs with the cyclic collector paused (`pause_collector`)."""
+
+_PAUSE: dict[str, Any] = {}
+"""The pause in force in this process: its timer."""
+
+
+def pause_collector(limit_s: float = COLLECTOR_PAUSE_S) -> None:
+    """Pause Python's cyclic garbage collector while this process starts, until
+    `resume_collector` (a timer calls it after `limit_s` seconds). Importing torch, Ray and
+    RLlib and building what a process runs make about a million objects that live as long as
+    the process, and while they are made each full collection walks all of them so far:
+    about a quarter of a command's or a Ray worker's start (results/NOTEBOOK.md, "The
+    collector at a process's start"). Cycles made meanwhile wait for the resume. A collector
+    paused or turned off already is left as it is."""
+    import gc
+    import threading
+
+    if _PAUSE or not gc.isenabled():
+        return
+    gc.disable()
+    timer = threading.Timer(limit_s, resume_collector)
+    timer.daemon = True
+    _PAUSE["timer"] = timer
+    timer.start()
+
+
+def resume_collector() -> None:
+    """End `pause_collector`'s pause: one collection (the cycles the start left), the
+    survivors frozen (they live as long as the process: later collections skip them), the
+    collector on. Nothing where no pause is in force."""
+    import gc
+
+    timer = _PAUSE.pop("timer", None)
+    if timer is None:
+        return
+    timer.cancel()
+    gc.collect()
+    gc.freeze()
+    gc.enable()
+
+
 def fixed_hash_seed(module: str, argv: list[str]) -> None:
     """Re-run this command with PYTHONHASHSEED=0 unless it is set. RLlib iterates sets of
     module ids in places (the learner's per-module work among them), and a set of strings

@@ -6,8 +6,8 @@ alone.
 Ray, `lean_local_ray`: a local Ray started without what a local Ray of this project never
 uses (`LEAN_LOCAL_RAY`: the dashboard agent on a fixed port, the autoscaler monitor; the
 dashboard head where the dashboard is off; the log monitor where nothing streams to the
-driver). Called by `hola_ray.process` before each start of a local Ray, and by the suite's
-own starts.
+driver), its workers started with the cyclic collector paused. Called by `hola_ray.process`
+before each start of a local Ray, and by the suite's own starts.
 
 RLlib, `apply_rllib`: its two fixes, called where RLlib's parts are built.
 
@@ -38,6 +38,7 @@ maintainers is in docs/packages.md ("Two fixes of RLlib 2.60").
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from typing import Any
 
 # ---- RLlib ------------------------------------------------------------------------------------
@@ -144,7 +145,11 @@ def rllib_in_place() -> dict[str, bool]:
 RAY_VERSION = "2.60.0"
 """the Ray whose start `lean_local_ray` was read from; another keeps its own"""
 
-LEAN_LOCAL_RAY = {"dashboard_agent_listen_port": 0, "no_monitor": True}
+LEAN_LOCAL_RAY = {
+    "dashboard_agent_listen_port": 0,
+    "no_monitor": True,
+    "worker_path": str(Path(__file__).with_name("ray_worker.py")),
+}
 """What a local Ray of this project starts differently from Ray 2.60's defaults (`RayParams`
 fields; `ray.init` takes neither):
 
@@ -158,6 +163,9 @@ fields; `ray.init` takes neither):
 - `no_monitor`: no autoscaler monitor, a process that only drives an autoscaler, which a
   local Ray has none of (part of each start, and a poll every few seconds). A cluster's
   nodes, started by `ray start`, keep theirs.
+- `worker_path`: each Python worker runs `hola_ray/ray_worker.py`, which runs Ray's own
+  `default_worker.py` with the cyclic collector paused while the worker starts
+  (`hola_ray.process.pause_collector`). A cluster's nodes run Ray's own.
 
 And with `include_dashboard=False`, no dashboard head (`lean_local_ray`): Ray 2.60 starts
 one regardless, serving only its usage-stats module (usage reporting off) with its HTTP

@@ -174,6 +174,8 @@ def smoke_run(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
 
 
 _WARM = """
+import gc
+gc.disable()  # a short process that only compiles: its collections would walk all it imported
 import sys
 import numba
 import numpy as np

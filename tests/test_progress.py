@@ -83,6 +83,50 @@ def test_a_command_leaves_with_its_code_and_every_object_frozen():
         gc.unfreeze()
 
 
+_PAUSED_START = """
+import gc, time, weakref
+from hola_ray import process
+
+class Node:
+    pass
+
+process.pause_collector(limit_s=float(__import__("sys").argv[1]))
+assert not gc.isenabled()
+process.pause_collector()  # paused already: one pause, one timer
+cycle = Node()
+cycle.self = cycle
+made = weakref.ref(cycle)
+del cycle
+time.sleep(0.3)
+if __import__("sys").argv[1] == "999":
+    assert not gc.isenabled() and made() is not None  # paused: the cycle waits
+    process.resume_collector()
+else:
+    time.sleep(0.7)
+assert gc.isenabled() and gc.get_freeze_count() > 0, (gc.isenabled(), gc.get_freeze_count())
+assert made() is None  # the resume's collection took the cycle made while paused
+gc.disable()  # turned off by someone else: a pause leaves it off, and no resume turns it on
+process.pause_collector()
+process.resume_collector()
+assert not gc.isenabled()
+print("ok")
+"""
+
+
+def test_a_paused_collector_resumes_collected_and_frozen_by_its_timer_or_a_call():
+    """`pause_collector` (a command's or a local Ray worker's start): the collector off until
+    its timer or `resume_collector`, which collects the cycles made meanwhile, freezes the
+    survivors and turns it on. In a process of its own: the suite's keeps its collector."""
+    import subprocess
+    import sys
+
+    for limit_s in ("0.2", "999"):  # the timer ends the pause; a call ends it first
+        done = subprocess.run(
+            [sys.executable, "-c", _PAUSED_START, limit_s], capture_output=True, text=True
+        )
+        assert done.stdout.strip() == "ok", (limit_s, done.stderr[-2000:])
+
+
 def test_a_finished_command_shuts_its_ray_down_before_ray_s_exit_hook(monkeypatch):
     """After a success `leave` shuts Ray down itself (Ray's exit hook would sleep 0.5 s
     first); after a failure it leaves Ray's hook to do it, with the workers' last lines."""

@@ -164,8 +164,9 @@ def _rounded(values: Mapping[str, Any]) -> dict[str, Any]:
 
 def script() -> None:
     """`hola-eval` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
-    from hola_ray.process import leave
+    from hola_ray.process import leave, pause_collector
 
+    pause_collector()
     leave(main())
 
 

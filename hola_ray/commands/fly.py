@@ -198,8 +198,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def script() -> None:
     """`hola-fly` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
-    from hola_ray.process import leave
+    from hola_ray.process import leave, pause_collector
 
+    pause_collector()
     leave(main())
 
 

@@ -207,9 +207,10 @@ def script() -> None:
     """`hola-pools` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
     hola_ray.pools` runs it (`hola_ray.process.fixed_hash_seed`)."""
 
-    from hola_ray.process import fixed_hash_seed, leave
+    from hola_ray.process import fixed_hash_seed, leave, pause_collector
 
     fixed_hash_seed("hola_ray.commands.pools", sys.argv[1:])
+    pause_collector()
     leave(main())
 
 

@@ -290,9 +290,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def script() -> None:
     """`hola-populations` (`[project.scripts]`): `main` under the fixed hash seed."""
-    from hola_ray.process import fixed_hash_seed, leave
+    from hola_ray.process import fixed_hash_seed, leave, pause_collector
 
     fixed_hash_seed("hola_ray.commands.populations", sys.argv[1:])
+    pause_collector()
     leave(main())
 
 

@@ -117,8 +117,9 @@ def _team(args) -> tuple[PursuitConfig, list[Policy]]:
 
 def script() -> None:
     """`hola-replay` (`[project.scripts]`) and `python -m`: `main`, then a quick exit."""
-    from hola_ray.process import leave
+    from hola_ray.process import leave, pause_collector
 
+    pause_collector()
     leave(main())
 
 

@@ -306,9 +306,10 @@ def interrupted(out: Path) -> int:
 def script() -> None:
     """`hola-run` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
     hola_ray.run` runs it (`hola_ray.process.fixed_hash_seed`)."""
-    from hola_ray.process import fixed_hash_seed, leave
+    from hola_ray.process import fixed_hash_seed, leave, pause_collector
 
     fixed_hash_seed("hola_ray.commands.run", sys.argv[1:])
+    pause_collector()
     from hola_ray.clock import process_start
 
     leave(main(started=process_start()))

@@ -131,9 +131,10 @@ def _save_config(experiment: Experiment, out: Path) -> None:
 def script() -> None:
     """`hola-experiment` (`[project.scripts]`): `main` under the fixed hash seed, as `python -m
     hola_ray.experiment` runs it (`hola_ray.process.fixed_hash_seed`)."""
-    from hola_ray.process import fixed_hash_seed, leave
+    from hola_ray.process import fixed_hash_seed, leave, pause_collector
 
     fixed_hash_seed("hola_ray.experiment", sys.argv[1:])
+    pause_collector()
     leave(main())
 
 

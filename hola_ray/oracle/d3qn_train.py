@@ -489,9 +489,10 @@ def script() -> None:
     hola_ray.oracle.d3qn_train` runs it (`hola_ray.process.fixed_hash_seed`)."""
     import sys
 
-    from hola_ray.process import fixed_hash_seed, leave
+    from hola_ray.process import fixed_hash_seed, leave, pause_collector
 
     fixed_hash_seed("hola_ray.oracle.d3qn_train", sys.argv[1:])
+    pause_collector()
     main()
     leave(0)
 

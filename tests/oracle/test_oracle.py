@@ -79,6 +79,26 @@ def test_a_local_ray_without_the_dashboard_starts_no_dashboard_head(oracle):
     assert ray.get_runtime_context().get_node_id()
 
 
+def test_a_local_rays_workers_run_rays_own_worker_with_the_start_paused(oracle):
+    """This module's Ray, started as the commands start theirs (`lean_local_ray`), runs each
+    Python worker through `hola_ray/ray_worker.py`: Ray's own `default_worker.py` is the
+    worker's `__main__`, and the worker started with the cyclic collector paused (off still,
+    or resumed with the start frozen). Its env runners ran on such workers."""
+    import gc
+    import sys
+
+    from hola_ray import ray_worker
+
+    def state(*_):
+        return sys.modules["__main__"].__file__, gc.isenabled(), gc.get_freeze_count()
+
+    seen = oracle.algo.env_runner_group.foreach_env_runner(state, local_env_runner=False)
+    assert seen
+    for main, enabled, frozen in seen:
+        assert main == ray_worker.default_worker()
+        assert not enabled or frozen > 0, (enabled, frozen)
+
+
 def test_building_an_oracle_applies_the_rllib_fixes_in_its_processes(oracle):
     """`third_party.apply_rllib()` is called where the Oracle builds RLlib's parts, not by an
     import: in the driver and in every env runner (each its own process) both fixes are in
