@@ -216,6 +216,18 @@ def pytest_configure(config) -> None:
     if controller and getattr(config.option, "numprocesses", None):
         for part in ("step", "reset"):  # while the workers start and collect
             _WARMING.append(subprocess.Popen([sys.executable, "-c", _WARM, part], cwd=ROOT))
+    else:  # a process that collects: the test modules import torch, Ray and RLlib
+        from hola_ray.process import pause_collector
+
+        pause_collector(limit_s=600.0)  # until the collection is done, as a command's start
+
+
+def pytest_collection_finish(session) -> None:
+    """The collector on again once the tests are collected, what their imports made frozen:
+    the collections while the tests run skip it (`hola_ray.process.resume_collector`)."""
+    from hola_ray.process import resume_collector
+
+    resume_collector()
 
 
 _STARTS_RAY = {"ray_session", "smoke_run", "commands"}
