@@ -9,7 +9,8 @@ dashboard head where the dashboard is off; the log monitor where nothing streams
 driver), its workers started with the cyclic collector paused. Called by `hola_ray.process`
 before each start of a local Ray, and by the suite's own starts.
 
-RLlib, `apply_rllib`: its two fixes, called where RLlib's parts are built.
+RLlib, `apply_rllib`: its two fixes and torch's `lazy_dynamo`, called where RLlib's parts
+are built.
 
 `fast_connectors`: RLlib's `ConnectorV2.__init__` records its subclass's constructor
 arguments (for `get_ctor_args_and_kwargs`, to rebuild a pipeline from a checkpoint) by
@@ -29,7 +30,14 @@ that `torch.compile`'s inductor reads. The fix sets the same eager-mode flag
 (`torch._C._set_deterministic_algorithms`) and the inductor's flag only when the inductor
 is loaded already; what the eager ops compute is the same (tested in the same file).
 
-`apply_rllib()` is called where RLlib's parts are built: the Oracle
+torch, `lazy_dynamo`: an optimizer imports `torch._dynamo` (1.4 s here, sympy with it) at
+its construction and at each step, only to mark its methods as never traced and to put
+graph breaks around its step; while nothing has loaded `torch._dynamo` nothing is being
+traced, and those marks do nothing. The fix calls the methods themselves until something
+loads it, and torch's own wrappers from then on (tested in tests/oracle/test_third_party.py:
+the same weights after the same steps).
+
+`apply_rllib()` applies the three where RLlib's parts are built: the Oracle
 (`hola_ray.oracle.trainer.Oracle`), each of its env runners (`BatchedEnvRunner`) and the
 D3QN trainer; once per process (a second call finds them in place). The report for Ray's
 maintainers is in docs/packages.md ("Two fixes of RLlib 2.60").
@@ -123,10 +131,85 @@ def light_seeding() -> bool:
     return True
 
 
+# ---- torch -------------------------------------------------------------------------------------
+TORCH_VERSION = "2.13.0"
+"""the torch `lazy_dynamo` was read from; another keeps its own"""
+
+
+def lazy_dynamo() -> bool:
+    """torch's optimizers without `torch._dynamo` until something else loads it; True when
+    the fix is in place (now or before)."""
+    import torch
+    from torch.optim import optimizer
+
+    if getattr(optimizer, "_lazy_dynamo", False):
+        return True
+    if torch.__version__.split("+")[0] != TORCH_VERSION:
+        return False
+    disabled = torch._disable_dynamo(lambda: None).__code__  # the wrapper's code
+    with_grad = optimizer._use_grad_for_differentiable(lambda self: None).__code__
+    classes = [getattr(torch.optim, name) for name in torch.optim.__all__]
+    for cls in [c for c in classes if isinstance(c, type) and issubclass(c, optimizer.Optimizer)]:
+        for name, method in list(vars(cls).items()):
+            code = getattr(method, "__code__", None)
+            if code is disabled:
+                closure = dict(zip(code.co_freevars, method.__closure__, strict=True))
+                fn = closure["fn"].cell_contents
+                if getattr(fn, "__dynamo_disable", None) is None:
+                    fn.__dynamo_disable = _until_dynamo(fn, closure["recursive"].cell_contents)
+            elif name == "step" and code is with_grad and not getattr(method, "hooked", False):
+                setattr(cls, name, _grad_mode_step(method))
+    optimizer._lazy_dynamo = True
+    return True
+
+
+def _until_dynamo(fn: Any, recursive: bool) -> Any:
+    """What `torch._disable_dynamo`'s wrapper calls in `fn`'s place: `fn` itself while
+    `torch._dynamo` is not loaded (nothing can be tracing), torch's own once it is."""
+
+    def call(*args: Any, **kwargs: Any) -> Any:
+        if "torch._dynamo" not in sys.modules:
+            return fn(*args, **kwargs)
+        import torch._dynamo  # loaded, or being loaded by another thread: wait for it
+
+        fn.__dynamo_disable = torch._dynamo.disable(fn, recursive, wrapping=False)
+        return fn.__dynamo_disable(*args, **kwargs)
+
+    return call
+
+
+def _grad_mode_step(use_grad: Any) -> Any:
+    """An optimizer's `step` as `_use_grad_for_differentiable` makes it, without its two
+    `torch._dynamo.graph_break()` calls while `torch._dynamo` is not loaded."""
+    import functools
+
+    import torch
+
+    step_of = use_grad.__wrapped__
+
+    @functools.wraps(step_of)
+    def step(self: Any, *args: Any, **kwargs: Any) -> Any:
+        if "torch._dynamo" in sys.modules:
+            return use_grad(self, *args, **kwargs)
+        grad = torch.is_grad_enabled()
+        try:
+            torch.set_grad_enabled(self.defaults["differentiable"])
+            return step_of(self, *args, **kwargs)
+        finally:
+            torch.set_grad_enabled(grad)
+
+    return step
+
+
 def apply_rllib() -> dict[str, bool]:
-    """Both of RLlib's fixes in this process; which are in place (False: another RLlib
+    """RLlib's two fixes and torch's `lazy_dynamo` in this process (where RLlib builds its
+    parts, its learner's optimizer among them); which are in place (False: another
     version)."""
-    return {"fast_connectors": fast_connectors(), "light_seeding": light_seeding()}
+    return {
+        "fast_connectors": fast_connectors(),
+        "light_seeding": light_seeding(),
+        "lazy_dynamo": lazy_dynamo(),
+    }
 
 
 def rllib_in_place() -> dict[str, bool]:
@@ -137,6 +220,7 @@ def rllib_in_place() -> dict[str, bool]:
     return {
         "fast_connectors": getattr(ConnectorV2.__init__, "_fast", False),
         "light_seeding": getattr(deterministic.set_torch_seed, "_light", False),
+        "lazy_dynamo": getattr(sys.modules.get("torch.optim.optimizer"), "_lazy_dynamo", False),
         "inductor_loaded": "torch._inductor.config" in sys.modules,
     }
 

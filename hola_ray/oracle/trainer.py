@@ -140,15 +140,10 @@ class Oracle:
 
         # The driver's own part of the build, done while RLlib waits for the env runners'
         # processes to start (4.8 s of the default run's 7.9): the spread probe's reference
-        # observations, and torch._dynamo, which the first optimizer imports (1.9 s).
-        # Neither draws from a random generator the build seeds.
-        def drivers_part() -> np.ndarray:
-            import torch._dynamo  # noqa: F401 (what Adam's first construction imports)
-
-            return reference_observations(env)
-
+        # observations, which draw from no random generator the build seeds. (torch's
+        # optimizers no longer import torch._dynamo: `third_party.lazy_dynamo`.)
         with ThreadPoolExecutor(1) as aside:
-            reference = aside.submit(drivers_part)
+            reference = aside.submit(reference_observations, env)
             self.algo: Algorithm = self._algorithm_config(self.trained, seed).build_algo()
             _PUSHED[id(self.algo)] = self._pushed  # read by _RepushOnRecreate
             # Every 4th of the reference observations (≈ 1,500): the per-iteration spread

@@ -102,8 +102,7 @@ def test_a_local_rays_workers_run_rays_own_worker_with_the_start_paused(oracle):
 def test_building_an_oracle_applies_the_rllib_fixes_in_its_processes(oracle):
     """`third_party.apply_rllib()` is called where the Oracle builds RLlib's parts, not by an
     import: in the driver and in every env runner (each its own process) both fixes are in
-    place, and no env runner loaded the inductor. (The driver's learner has: torch's Adam
-    imports `torch._dynamo`, and with it the inductor's config, at its first call.)"""
+    place (torch's `lazy_dynamo` with them), and no env runner loaded the inductor."""
     from hola_ray import third_party
 
     here = third_party.rllib_in_place()
@@ -111,7 +110,13 @@ def test_building_an_oracle_applies_the_rllib_fixes_in_its_processes(oracle):
     runners = oracle.algo.env_runner_group.foreach_env_runner(
         lambda runner: third_party.rllib_in_place(), local_env_runner=False
     )
-    fixed = {"fast_connectors": True, "light_seeding": True, "inductor_loaded": False}
+    assert here["lazy_dynamo"], here
+    fixed = {
+        "fast_connectors": True,
+        "light_seeding": True,
+        "lazy_dynamo": True,
+        "inductor_loaded": False,
+    }
     assert runners and all(r == fixed for r in runners), runners
 
 

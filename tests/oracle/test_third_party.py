@@ -99,3 +99,49 @@ def test_light_seeding_seeds_torch_as_rllib_does_without_loading_the_inductor():
     light, rllib = seen["light"], seen["rllib"]
     assert not light.pop("inductor_loaded") and rllib.pop("inductor_loaded")
     assert light == rllib and rllib["deterministic"]
+
+
+OPTIMIZED = """
+import json, sys, torch
+from hola_ray.third_party import lazy_dynamo
+
+def trained(optimizer_class, **options):
+    torch.manual_seed(7)
+    model = torch.nn.Sequential(torch.nn.Linear(4, 8), torch.nn.Tanh(), torch.nn.Linear(8, 2))
+    optimizer = optimizer_class(model.parameters(), **options)
+    for _ in range(3):
+        optimizer.zero_grad()
+        model(torch.randn(16, 4)).pow(2).mean().backward()
+        optimizer.step()  # in its own grad mode (off), the caller's (on) back after it
+        assert torch.is_grad_enabled()
+    optimizer.load_state_dict(optimizer.state_dict())
+    return [p.tolist() for p in model.parameters()]
+
+if sys.argv[1] == "lazy":
+    assert lazy_dynamo()
+runs = [trained(torch.optim.Adam, lr=0.01), trained(torch.optim.SGD, lr=0.1, momentum=0.9)]
+loaded = "torch._dynamo" in sys.modules
+import torch._dynamo  # loaded now: the fixed methods do as torch's own from here
+runs.append(trained(torch.optim.Adam, lr=0.01))
+print(json.dumps({"runs": runs, "dynamo_loaded_while_training": loaded}))
+"""
+
+
+def test_lazy_dynamo_trains_as_torchs_own_optimizers_without_loading_dynamo():
+    """In fresh interpreters, torch's optimizers with `lazy_dynamo` and without: the same
+    weights after the same steps (Adam, SGD with momentum; zero_grad, step, a state dict's
+    round trip), and only the fixed ones did not load `torch._dynamo`; once it is loaded the
+    fixed ones train the same again."""
+    import json
+    import subprocess
+    import sys
+
+    seen = {}
+    for how in ("lazy", "torch"):
+        out = subprocess.run([sys.executable, "-c", OPTIMIZED, how], capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr[-2000:]
+        seen[how] = json.loads(out.stdout.strip().splitlines()[-1])
+    assert not seen["lazy"]["dynamo_loaded_while_training"]
+    assert seen["torch"]["dynamo_loaded_while_training"]
+    assert seen["lazy"]["runs"] == seen["torch"]["runs"]
+    assert seen["lazy"]["runs"][2] == seen["lazy"]["runs"][0]
