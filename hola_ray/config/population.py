@@ -18,6 +18,10 @@ class PopulationConfig:
     """members pre-trained with MEP to build G_0"""
     top_m: int = 3
     """the learner joins when its η rank is within the top m (the approximate oracle)"""
+    preferred_only: bool = False
+    """true: the learner joins only when some member also prefers it (η > 0); false: the
+    paper's rule, rank alone, under which a learner at η = 0 joins when ties put it within
+    the top m (results/NOTEBOOK.md: 59 of hola's 68 joins at 3 vs 2)"""
     phi_shift: float = 0.1
     """φ = normalised 1/(x − x_min + shift·(x_max − x_min)), x the node values"""
     rank_beta: float = 3.0

@@ -132,4 +132,6 @@ class Method:
             )
         if not self.may_join():
             return f"population fixed ({self.name}: a best response; η rank {decision.rank})"
+        if decision.rank <= config.population.top_m:  # within the top m, yet nobody prefers it
+            return f"rejected (η 0: no member prefers it; rank {decision.rank})"
         return f"rejected (rank {decision.rank} > top {config.population.top_m})"

@@ -63,6 +63,7 @@ def saved_population(state: Mapping[str, Any], config: PopulationConfig) -> Popu
             f"population.max_size {config.max_size}"
         )
     population.max_size, population.top_m = config.max_size, config.top_m
+    population.preferred_only = config.preferred_only
     return population
 
 
@@ -100,7 +101,9 @@ class Coordinator:
         self.run.clean_partial()
         self.generation = self.run.last_completed()
         if self.generation is None:
-            self.population = Population(l, population.max_size, population.top_m)
+            self.population = Population(
+                l, population.max_size, population.top_m, population.preferred_only
+            )
             self.last_metrics: dict[str, Any] = {}
         else:
             state = self.run.read_json(self.generation, "state.json")

@@ -58,8 +58,16 @@ class Decision:
 class Population:
     """Members, their slots and the HyFoG over them."""
 
-    def __init__(self, l: int, max_size: int, top_m: int):  # noqa: E741 - the paper's l
+    def __init__(
+        self,
+        l: int,  # noqa: E741 - the paper's l
+        max_size: int,
+        top_m: int,
+        preferred_only: bool = False,
+    ):
         self.l, self.max_size, self.top_m = l, max_size, top_m
+        self.preferred_only = preferred_only
+        """a candidate joins only at η > 0 (`PopulationConfig.preferred_only`)"""
         self.learner_returns: dict[int, float] = {}
         """member → mean team return of the latest candidate's hyperedges that hold it"""
         self.extra: dict[str, Any] = {}
@@ -127,16 +135,17 @@ class Population:
                     self.learner_returns[member] = float(np.mean(returns))
 
     def decide(self, admit: bool = True) -> Decision:
-        """Accept the candidate if `admit` and its η rank is within the top m; seat it,
-        replacing the lowest-η member when full; otherwise remove it with its hyperedges
-        (a best-response method never admits: the candidate is measured and turned away)."""
+        """Accept the candidate if `admit` and its η rank is within the top m (and, where
+        `preferred_only`, its η is above 0); seat it, replacing the lowest-η member when
+        full; otherwise remove it with its hyperedges (a best-response method never admits:
+        the candidate is measured and turned away)."""
         node = self.candidate
         if node is None:
             raise ValueError("no candidate to decide on")
         rank = rank_of(self.hyfog, node)
         eta = centrality(self.hyfog)[node]
         replaced = slot = None
-        accepted = admit and rank <= self.top_m
+        accepted = admit and rank <= self.top_m and (eta > 0 or not self.preferred_only)
         if accepted:
             if len(self.slots) >= self.max_size:
                 replaced = lowest_centrality(self.hyfog, exclude=node)
@@ -180,6 +189,7 @@ class Population:
             "l": self.l,
             "max_size": self.max_size,
             "top_m": self.top_m,
+            "preferred_only": self.preferred_only,
             "learner_returns": {str(k): v for k, v in self.learner_returns.items()},
             "extra": self.extra,
             "next_node": self.next_node,
@@ -189,7 +199,7 @@ class Population:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Population:
-        p = cls(data["l"], data["max_size"], data["top_m"])
+        p = cls(data["l"], data["max_size"], data["top_m"], data.get("preferred_only", False))
         p.learner_returns = {int(k): v for k, v in data.get("learner_returns", {}).items()}
         p.extra = dict(data.get("extra", {}))
         for key in ("agent_scores", "agent_hyper"):  # a run saved before `extra` (PBT's)

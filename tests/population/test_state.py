@@ -56,14 +56,32 @@ def test_an_adopted_generation_zero_takes_the_runs_own_m_and_size():
     built = worked_example(max_size=4, top_m=2)
     assert not built.decide().accepted  # the build's m turns it away: four members, as shipped
     state = {"population": built.to_dict()}
-    p = saved_population(state, PopulationConfig(max_size=6, initial_size=4, top_m=3))
-    assert (p.max_size, p.top_m) == (6, 3) and p.members == [0, 1, 2, 3]
+    run = PopulationConfig(max_size=6, initial_size=4, top_m=3, preferred_only=True)
+    p = saved_population(state, run)
+    assert (p.max_size, p.top_m, p.preferred_only) == (6, 3, True)
+    assert p.members == [0, 1, 2, 3]
     candidate = p.propose()
     p.record([edge((candidate, 1, 2), 9), edge((candidate, 0, 3), 0), edge((candidate, 0, 1), 3)])
     d = p.decide()
     assert d.rank == 3 and d.accepted and d.replaced is None and d.slot == 4
     with pytest.raises(ValueError, match="more than population.max_size 3"):
         saved_population(state, PopulationConfig(max_size=3, initial_size=3, top_m=3))
+
+
+def test_a_candidate_nobody_prefers_joins_by_rank_alone_unless_preferred_only():
+    """A candidate whose hyperedges all weigh 0: no member's best hyperedge holds it (η 0),
+    and it ties member 3 (η 0) at competition rank 4. Under the paper's rule (rank alone,
+    m = 4) it joins; with `preferred_only` it is turned away, and the setting persists."""
+    for preferred_only, joins in ((False, True), (True, False)):
+        p = Population(l=3, max_size=4, top_m=4, preferred_only=preferred_only)
+        p.add_initial(4)
+        members = [edge((0, 1, 2), 5), edge((0, 1, 3), 1), edge((0, 2, 3), 1)]
+        p.record([*members, edge((1, 2, 3), 2)])
+        assert p.propose() == 4
+        p.record([edge((4, 1, 2), 0), edge((4, 0, 3), 0), edge((4, 0, 1), 0)])
+        d = p.decide()
+        assert d.eta == 0 and d.rank == 4 and d.accepted is joins, (preferred_only, d)
+        assert Population.from_dict(p.to_dict()).preferred_only is preferred_only
 
 
 def test_candidate_outside_top_m_is_removed():
