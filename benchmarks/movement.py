@@ -13,7 +13,8 @@ on the validation teammates only (never an evaluation pool: a pilot sizes a desi
 - per method: the mean slope over seeds with a t-interval, the first and the last
   generation's figure, and the standard deviation between seeds of the last;
 - the controls of the paper's question, per trial: how many candidates joined the
-  population (`accepted`), its last size, and the largest `phi_tv` (how far the φ used ever
+  population (`accepted`) and how many of those at η 0 (no member preferred them: they
+  joined on a tie of ranks), its last size, and the largest `phi_tv` (how far the φ used ever
   departed from the rival rule's: 0 means hola trained as hola_r would have);
 - the paired difference A − B of the last generation's figure, seed by seed (trials of one
   seed share the population build and the validation episodes), its standard deviation,
@@ -72,12 +73,15 @@ def curves(folder: Path, key: str) -> dict[str, dict[int, list[tuple[int, float]
 
 
 def controls(folder: Path) -> dict[str, dict[str, dict[str, float]]]:
-    """method → seed → candidates joined, last population size and the largest phi_tv."""
+    """method → seed → candidates joined, how many of them no member preferred (η 0: joined
+    on a tie of ranks), last population size and the largest phi_tv."""
     out: dict[str, dict[str, dict[str, float]]] = {}
     for method, seed, rows in trials(folder):
         tv = column(rows, "phi_tv")
+        joins = [r for r in rows if r.get("accepted") not in (None, "") and float(r["accepted"])]
         out.setdefault(method, {})[str(seed)] = {
-            "joined": sum(column(rows, "accepted")),
+            "joined": float(len(joins)),
+            "joined_at_eta_0": float(sum(float(r.get("eta") or 0.0) == 0.0 for r in joins)),
             "population_size": (column(rows, "population_size") or [math.nan])[-1],
             "phi_tv_max": max(tv) if tv else math.nan,
         }

@@ -69,22 +69,29 @@ def test_a_wide_spread_needs_more_seeds():
 
 
 def test_controls_count_joins_and_the_largest_phi_departure(tmp_path):
-    """Per trial: candidates that joined, the last population size and the largest phi_tv
-    (generation 0, which has no candidate, left out)."""
+    """Per trial: candidates that joined, those of them at η 0, the last population size and
+    the largest phi_tv (generation 0, which has no candidate, left out)."""
     trial = tmp_path / "trials" / "hola-s3"
     trial.mkdir(parents=True)
     rows = [
-        {"generation": 0, "accepted": "", "population_size": 4, "phi_tv": ""},
-        {"generation": 1, "accepted": 0, "population_size": 4, "phi_tv": 0.0},
-        {"generation": 2, "accepted": 1, "population_size": 5, "phi_tv": 0.004},
-        {"generation": 3, "accepted": 1, "population_size": 6, "phi_tv": 0.031},
+        {"generation": 0, "accepted": "", "eta": "", "population_size": 4, "phi_tv": ""},
+        {"generation": 1, "accepted": 0, "eta": 0.0, "population_size": 4, "phi_tv": 0.0},
+        {"generation": 2, "accepted": 1, "eta": 0.0, "population_size": 5, "phi_tv": 0.004},
+        {"generation": 3, "accepted": 1, "eta": 0.25, "population_size": 6, "phi_tv": 0.031},
     ]
     with open(trial / "metrics.csv", "w", newline="") as f:
         w = csv.DictWriter(f, list(rows[0]))
         w.writeheader()
         w.writerows(rows)
     assert movement.controls(tmp_path) == {
-        "hola": {"3": {"joined": 2.0, "population_size": 6.0, "phi_tv_max": 0.031}}
+        "hola": {
+            "3": {
+                "joined": 2.0,
+                "joined_at_eta_0": 1.0,
+                "population_size": 6.0,
+                "phi_tv_max": 0.031,
+            }
+        }
     }
 
 
