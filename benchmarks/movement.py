@@ -74,7 +74,8 @@ def curves(folder: Path, key: str) -> dict[str, dict[int, list[tuple[int, float]
 
 def controls(folder: Path) -> dict[str, dict[str, dict[str, float]]]:
     """method → seed → candidates joined, how many of them no member preferred (η 0: joined
-    on a tie of ranks), last population size and the largest phi_tv."""
+    on a tie of ranks), last population size, and the largest phi_tv (against the rival
+    rule's φ) and phi_tv_uniform (against uniform draws; nan for runs made before it)."""
     out: dict[str, dict[str, dict[str, float]]] = {}
     for method, seed, rows in trials(folder):
         tv = column(rows, "phi_tv")
@@ -84,6 +85,9 @@ def controls(folder: Path) -> dict[str, dict[str, dict[str, float]]]:
             "joined_at_eta_0": float(sum(float(r.get("eta") or 0.0) == 0.0 for r in joins)),
             "population_size": (column(rows, "population_size") or [math.nan])[-1],
             "phi_tv_max": max(tv) if tv else math.nan,
+            "phi_tv_uniform_max": max(flat)
+            if (flat := column(rows, "phi_tv_uniform"))
+            else math.nan,
         }
     return out
 

@@ -82,6 +82,8 @@ def test_smoke_run_writes_the_whole_run_directory(smoke_run, tmp_path):
     # hola's φ against hola_r's on the same hypergraph: G_0 is every l-set (regular), so the
     # two are one draw, and the run says so
     assert rows[1]["phi_tv"] == 0.0 and "phi_tv" not in rows[0]
+    # and against uniform draws: a distance, on the rows that trained with a φ
+    assert 0.0 <= rows[1]["phi_tv_uniform"] <= 1.0 and "phi_tv_uniform" not in rows[0]
     assert "φ never departed from mean_reward's by more than 0.01" in done.stdout
     # the validation teammates judged generation 1, and best.pt was chosen on them
     assert 0.0 <= rows[1]["val_success"] <= 1.0 and 0.0 <= rows[1]["val_learner_crash"] <= 1.0

@@ -40,6 +40,7 @@ _METRICS = (
     "rank",
     "phi_entropy",
     "phi_tv",
+    "phi_tv_uniform",
     "oracle_s",
     "oracle_env_steps_per_s",
     "grapher_s",

@@ -20,7 +20,7 @@ import ray
 
 from hola_ray.config.population import PopulationConfig
 from hola_ray.population.files import TorchFile
-from hola_ray.population.rules import Rules
+from hola_ray.population.rules import Rules, Uniform
 from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import Decision, EdgeResult, Population
 from hola_ray.population.telemetry import Telemetry
@@ -82,7 +82,8 @@ class CoordinatorSettings:
     """grapher.edges_per_learner: (l − 1)-sets sampled per learner, 0 = every one"""
     method: str
     rival: Rules | None = None
-    """the rule whose φ each generation's is compared with (`phi_tv`), if any"""
+    """the rule whose φ each generation's is compared with (`phi_tv`), if any; where there
+    is one, uniform draws too (`phi_tv_uniform`)"""
     tags: Mapping[str, str] = field(default_factory=dict)
     """the telemetry's run and trial tags; empty: the run directory's own"""
 
@@ -96,7 +97,7 @@ class Coordinator:
         self.edges_per_learner = settings.edges_per_learner
         self.rival = settings.rival
         l, population, tags = settings.l, settings.population, settings.tags  # noqa: E741
-        self._phi_tv: float | None = None
+        self._phi_tv: dict[str, float] = {}
         self.run = RunDir(run_dir)
         self.run.clean_partial()
         self.generation = self.run.last_completed()
@@ -241,9 +242,9 @@ class Coordinator:
             "eta.json": {str(k): v for k, v in eta.items()},
             "edges.json": [vars(r) | {"nodes": list(r.nodes)} for r in self._edges],
         }
-        if self._phi_tv is not None:  # the φ this generation trained with, against the rival's
-            row["phi_tv"] = round(self._phi_tv, 6)
-            self._phi_tv = None
+        # the φ this generation trained with, against the rival's and against uniform draws
+        row.update({key: round(tv, 6) for key, tv in self._phi_tv.items()})
+        self._phi_tv = {}
         row["persist_s"] = round(time.perf_counter() - start, 4)
         files["metrics.json"] = row
         files["iterations.json"] = [dict(r) for r in iterations]
@@ -280,7 +281,12 @@ class Coordinator:
         the members' order; φ 0 for the member in `exclude_slot` (PBT's agent in training)."""
         phi = self.rules.phi(self.population, exclude_slot)
         if self.rival is not None:
-            self._phi_tv = total_variation(phi, self.rival.phi(self.population, exclude_slot))
+            self._phi_tv = {
+                "phi_tv": total_variation(phi, self.rival.phi(self.population, exclude_slot)),
+                "phi_tv_uniform": total_variation(
+                    phi, Uniform().phi(self.population, exclude_slot)
+                ),
+            }
         return {self.population.slots[v]: (v, phi.get(v, 0.0)) for v in self.population.members}
 
     def view(self) -> dict[str, Any]:

@@ -70,7 +70,7 @@ def test_a_wide_spread_needs_more_seeds():
 
 def test_controls_count_joins_and_the_largest_phi_departure(tmp_path):
     """Per trial: candidates that joined, those of them at η 0, the last population size and
-    the largest phi_tv (generation 0, which has no candidate, left out)."""
+    the largest phi_tv and phi_tv_uniform (generation 0, which has no candidate, left out)."""
     trial = tmp_path / "trials" / "hola-s3"
     trial.mkdir(parents=True)
     rows = [
@@ -79,6 +79,8 @@ def test_controls_count_joins_and_the_largest_phi_departure(tmp_path):
         {"generation": 2, "accepted": 1, "eta": 0.0, "population_size": 5, "phi_tv": 0.004},
         {"generation": 3, "accepted": 1, "eta": 0.25, "population_size": 6, "phi_tv": 0.031},
     ]
+    for row, uniform in zip(rows, ("", 0.1, 0.2, 0.15), strict=True):
+        row["phi_tv_uniform"] = uniform
     with open(trial / "metrics.csv", "w", newline="") as f:
         w = csv.DictWriter(f, list(rows[0]))
         w.writeheader()
@@ -90,6 +92,7 @@ def test_controls_count_joins_and_the_largest_phi_departure(tmp_path):
                 "joined_at_eta_0": 1.0,
                 "population_size": 6.0,
                 "phi_tv_max": 0.031,
+                "phi_tv_uniform_max": 0.2,
             }
         }
     }
