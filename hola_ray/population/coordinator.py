@@ -51,6 +51,17 @@ def total_variation(p: Mapping[int, float], q: Mapping[int, float]) -> float:
     return 0.5 * sum(abs(p.get(v, 0.0) - q.get(v, 0.0)) for v in set(p) | set(q))
 
 
+def phi_distances(
+    phi: Mapping[int, float], population: Population, rival: Rules, exclude_slot: int | None
+) -> dict[str, float]:
+    """How far a generation's φ lies from its rival rule's (`phi_tv`) and from uniform draws
+    over the same members (`phi_tv_uniform`), as total variation."""
+    return {
+        "phi_tv": total_variation(phi, rival.phi(population, exclude_slot)),
+        "phi_tv_uniform": total_variation(phi, Uniform().phi(population, exclude_slot)),
+    }
+
+
 def saved_population(state: Mapping[str, Any], config: PopulationConfig) -> Population:
     """The population a run goes on with from a saved generation (its `state.json`): its
     members and hyperedges, under the run's own open-ended settings (m, size). A generation 0
@@ -281,12 +292,7 @@ class Coordinator:
         the members' order; φ 0 for the member in `exclude_slot` (PBT's agent in training)."""
         phi = self.rules.phi(self.population, exclude_slot)
         if self.rival is not None:
-            self._phi_tv = {
-                "phi_tv": total_variation(phi, self.rival.phi(self.population, exclude_slot)),
-                "phi_tv_uniform": total_variation(
-                    phi, Uniform().phi(self.population, exclude_slot)
-                ),
-            }
+            self._phi_tv = phi_distances(phi, self.population, self.rival, exclude_slot)
         return {self.population.slots[v]: (v, phi.get(v, 0.0)) for v in self.population.members}
 
     def view(self) -> dict[str, Any]:

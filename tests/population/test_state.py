@@ -109,6 +109,23 @@ def test_phi_and_eta_leave_the_undecided_candidate_out():
     assert p.eta() == pytest.approx({0: 2 / 3, 1: 1.0, 2: 1.0, 3: 0.0})
 
 
+def test_a_generations_phi_is_measured_against_its_rival_and_uniform_draws():
+    """The worked example's members (η 2/3, 1, 1, 0): HOLA-Drone's φ against the mean
+    reward's (`phi_tv`) and against uniform draws over the same members, which it is not."""
+    from hola_ray.population.coordinator import phi_distances
+
+    p = worked_example()
+    p.decide()  # the candidate joins: members 1, 2, 3, 4 on their own hyperedges
+    phi = InverseValue("myerson", 0.1).phi(p)
+    got = phi_distances(phi, p, InverseValue("mean_reward", 0.1), None)
+    uniform = {v: 1 / len(p.members) for v in p.members}
+    assert got["phi_tv_uniform"] == pytest.approx(total_variation(phi, uniform))
+    assert got["phi_tv_uniform"] > 0.01
+    rival = InverseValue("mean_reward", 0.1).phi(p)
+    assert got["phi_tv"] == pytest.approx(total_variation(phi, rival))
+    assert phi_distances(phi, p, InverseValue("myerson", 0.1), None)["phi_tv"] == 0.0
+
+
 def test_hola_and_hola_r_part_only_when_a_sampled_candidate_joins():
     """On G_0 (complete, 4 members, l = 3: every member in 3 hyperedges) φ from the Myerson
     value and from the mean reward are one distribution; a candidate judged on 2 sampled
