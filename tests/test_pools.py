@@ -89,7 +89,7 @@ def test_a_two_evader_member_plays_one_evader_as_if_the_other_were_caught(pool):
         ScenarioAdapter(dataclasses.replace(TWO, n_evaders=3), reference, trained_evaders=2)
 
 
-@pytest.mark.parametrize("name", ["hot", "het"])
+@pytest.mark.parametrize("name", ["hot", "het", "surround"])
 def test_the_committed_pools_load_and_play_their_recorded_table_ii(name):
     from hola_ray.evaluation.pools import pool_dir, read_manifest
     from hola_ray.evaluation.table import measure, table_scenario
@@ -140,6 +140,7 @@ def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):
     from hola_ray.evaluation.pools import (
         EVALUATION_POOLS,
         POOLS_DIR,
+        SURROUND,
         VALIDATION,
         load_validation,
         pool_dir,
@@ -147,17 +148,22 @@ def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):
     )
     from hola_ray.methods.config import RunConfig
 
-    validation = read_manifest(pool_dir(VALIDATION))["members"]
     held_out = {mid for ids in EVALUATION_POOLS.values() for mid in ids}
-    assert not set(validation) & held_out
     hashes = {
         e["sha256"]
         for name in EVALUATION_POOLS
         for e in read_manifest(pool_dir(name))["members"].values()
         if e.get("sha256")
     }
-    assert not {e.get("sha256") for e in validation.values()} & hashes
-    assert sorted(load_validation(VALIDATION, ONE)) == sorted(validation)
+    for pool in (VALIDATION, SURROUND):
+        validation = read_manifest(pool_dir(pool))["members"]
+        assert not set(validation) & held_out
+        assert not {e.get("sha256") for e in validation.values()} & hashes
+        assert sorted(load_validation(pool, ONE)) == sorted(validation)
+    # the third kind: hand-written, neither learned here nor an APF-A pair
+    surround = read_manifest(pool_dir(SURROUND))["members"]
+    assert {e["kind"] for e in surround.values()} == {"handwritten"}
+    assert not any(mid.startswith("apf-a") for mid in surround)
 
     for name in EVALUATION_POOLS:  # an evaluation pool, by name or as a folder
         with pytest.raises(PoolError, match="evaluation pool"):

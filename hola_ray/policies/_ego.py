@@ -40,3 +40,25 @@ def to_action(fx, fy, max_turn):
     if fx == 0.0 and fy == 0.0:
         return 0.5
     return turn_action(math.atan2(fy, fx), max_turn)
+
+
+@njit(cache=True, inline="always")
+def repel(fx, fy, obs, n, k_obst, k_mates, n_mates, scale, far, obst_range, obst_gain, mate_range, mate_gain):  # fmt: skip
+    """(fx, fy) less a soft repulsion from the nearest obstacle point nearer than
+    `obst_range` and from each seen teammate nearer than `mate_range`: each a unit vector
+    away from it, weighted gain · (range − distance) / range."""
+    qx, qy, d = point(obs, n, k_obst, scale)
+    if 0.0 < d < obst_range:
+        w = obst_gain * (obst_range - d) / obst_range
+        fx -= w * qx / d
+        fy -= w * qy / d
+    for j in range(n_mates):
+        k = k_mates + 2 * j
+        if obs[n, k] >= far:
+            continue
+        mx, my, md = point(obs, n, k, scale)
+        if 0.0 < md < mate_range:
+            w = mate_gain * (mate_range - md) / mate_range
+            fx -= w * mx / md
+            fy -= w * my / md
+    return fx, fy

@@ -12,6 +12,7 @@ from hola_ray.policies.apf import APFA
 from hola_ray.policies.base import Policy
 from hola_ray.policies.greedy import Greedy
 from hola_ray.policies.hold import HoldHeading
+from hola_ray.policies.surround import SURROUND_MEMBERS, Surround
 from hola_ray.policies.vicsek import Vicsek
 
 _FACTORIES: dict[str, Callable[[PursuitConfig], Policy]] = {
@@ -19,6 +20,7 @@ _FACTORIES: dict[str, Callable[[PursuitConfig], Policy]] = {
     "vicsek": Vicsek,
     "hold": HoldHeading,
     **{f"apf-a-{k}": (lambda cfg, k=k: APFA(cfg, pair=k)) for k in range(24)},
+    **{k: (lambda cfg, p=p: Surround(cfg, p)) for k, p in SURROUND_MEMBERS.items()},
 }
 
 

@@ -105,19 +105,9 @@ def _vicsek(
             cn = norm(cx, cy)
             if cn > 0.0:
                 fx, fy = cx / cn, cy / cn
-        qx, qy, d = _ego.point(obs, n, k_obst, scale)
-        if 0.0 < d < obst_range:
-            w = obst_gain * (obst_range - d) / obst_range
-            fx -= w * qx / d
-            fy -= w * qy / d
-        for j in range(n_mates):
-            k = k_mates + 2 * j
-            if obs[n, k] >= far:
-                continue
-            mx, my, md = _ego.point(obs, n, k, scale)
-            if 0.0 < md < chaser_range:
-                w = chaser_gain * (chaser_range - md) / chaser_range
-                fx -= w * mx / md
-                fy -= w * my / md
+        fx, fy = _ego.repel(
+            fx, fy, obs, n, k_obst, k_mates, n_mates, scale, far,
+            obst_range, obst_gain, chaser_range, chaser_gain,
+        )  # fmt: skip
         out[n] = _ego.to_action(fx, fy, max_turn)
     return out

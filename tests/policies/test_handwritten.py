@@ -9,6 +9,7 @@ import pytest
 
 from hola_ray.env import BatchedPursuit, PursuitConfig
 from hola_ray.policies import APFA, APFConfig, Greedy, Vicsek, make_policy, policy_names
+from hola_ray.policies.surround import Surround, SurroundConfig
 
 
 def blank_obs(config: PursuitConfig, rows: int = 1) -> np.ndarray:
@@ -45,7 +46,7 @@ def test_greedy_sidesteps_a_near_obstacle_or_teammate(config):
 
 
 def test_no_live_evader_means_straight_on(config):
-    for policy in (Greedy(config), Vicsek(config), APFA(config, 12)):
+    for policy in (Greedy(config), Vicsek(config), APFA(config, 12), Surround(config)):
         assert policy.act(blank_obs(config))[0] == pytest.approx(0.5)
 
 
@@ -84,6 +85,46 @@ def test_vicsek_leads_a_crossing_evader(config):
     assert Vicsek(config).act(obs)[0] > 0.5
 
 
+def test_surround_alone_heads_straight_for_the_evader(config):
+    obs = blank_obs(config)
+    obs[0, 0:3] = (0.4, 0.1, 0.0)  # 2 m away, 18° left; no teammate: a = 0.5 + 18/90
+    assert Surround(config).act(obs)[0] == pytest.approx(0.7, abs=1e-6)
+
+
+def test_surround_flanks_away_from_a_teammate_on_the_same_evader(config):
+    """A teammate on the evader's far-left side (seen from the pursuer) pushes the pursuer's
+    angle around the evader the other way: it bears right of the straight line, and more so
+    the larger the flank; within `close` of the evader it goes straight."""
+    obs = blank_obs(config)
+    obs[0, 0:3] = (0.4, 0.0, 0.0)  # evader 2 m dead ahead
+    # a teammate 2 m away at 20° left: 0.7 m left of the line to the evader, as near it
+    obs[0, 6:8] = (1.0, 0.0)
+    obs[0, 8:10] = (0.4, 20 / 180)
+    straight = Surround(config, SurroundConfig(flank=0.0)).act(obs)[0]
+    assert straight == pytest.approx(0.5, abs=1e-6)
+    one = Surround(config, SurroundConfig(flank=1.0)).act(obs)[0]
+    two = Surround(config, SurroundConfig(flank=2.0)).act(obs)[0]
+    assert two < one < 0.5  # turns right, away from the teammate's side
+    obs[0, 0:3] = (0.08, 0.0, 0.0)  # the evader 0.4 m ahead, within `close`
+    obs[0, 8:10] = (0.1, 60 / 180)
+    assert Surround(config, SurroundConfig(flank=2.0, mate_range=0.1)).act(obs)[0] == pytest.approx(0.5)
+
+
+def test_surround_leaves_an_evader_its_share_of_teammates_holds(config):
+    """Three pursuers, two live evaders: at most two on one. With both teammates nearer the
+    nearest evader, the pursuer takes the other one."""
+    obs = blank_obs(config)
+    obs[0, 0:3] = (0.2, 0.0, 0.0)  # evader 0: 1 m ahead
+    obs[0, 3:6] = (0.4, 0.5, 0.0)  # evader 1: 2 m away, 90° left
+    obs[0, 6:8] = (1.0, 0.0)
+    obs[0, 8:10] = (0.16, 0.0)  # both teammates 0.8 m ahead, nearer evader 0
+    obs[0, 10:12] = (0.17, 0.01)
+    quiet = SurroundConfig(flank=0.0, mate_range=0.0)
+    assert Surround(config, quiet).act(obs)[0] == pytest.approx(1.0)  # full left turn
+    obs[0, 10:12] = (0.4, -0.5)  # one teammate leaves: evader 0 is free again
+    assert Surround(config, quiet).act(obs)[0] == pytest.approx(0.5)
+
+
 def test_policies_are_batched_and_in_range(config):
     env = BatchedPursuit(config, 32)
     obs = env.reset(seeds=np.arange(32)).reshape(-1, config.obs_dim)
@@ -100,7 +141,7 @@ def test_policies_read_only_the_observation(config):
     """Same observation, same action, whatever the hidden state behind it."""
     obs = blank_obs(config, 2)
     obs[:, 0:3] = (0.3, 0.2, -0.4)
-    for name in ("greedy", "vicsek", "apf-a-5"):
+    for name in ("greedy", "vicsek", "apf-a-5", "surround-1"):
         actions = make_policy(name, config).act(obs)
         assert actions[0] == actions[1]
     assert math.isfinite(float(actions[0]))
