@@ -177,12 +177,12 @@ def test_a_pilot_is_trained_only(tmp_path):
     config = pilot.run_config("uniform-s3")
     assert (config.env.n_evaders, config.pretrain.learner_start) == (2, "random")
     assert config.grapher.edges_per_learner == 3
-    # every shipped 3 vs 2 pilot: trained only, 4 seeds, at 3 vs 2 with sampled hyperedges
+    # every shipped 3 vs 2 pilot: trained only, 3 or 4 seeds, at 3 vs 2 with sampled hyperedges
     pilots = sorted((ROOT / "configs" / "experiments").glob("pilot-3v2*.yaml"))
     assert len(pilots) >= 5
     for path in pilots:
         pilot = Experiment.from_yaml(path)
-        assert pilot.evaluation is None and len(pilot.seeds) == 4, path.name
+        assert pilot.evaluation is None and len(pilot.seeds) in (3, 4), path.name
         for trial in pilot.trials():
             config = pilot.run_config(trial)
             assert config.env.n_evaders == 2 and config.grapher.edges_per_learner == 3, trial

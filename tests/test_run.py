@@ -87,7 +87,10 @@ def test_smoke_run_writes_the_whole_run_directory(smoke_run, tmp_path):
     assert "φ never departed from mean_reward's by more than 0.01" in done.stdout
     # the validation teammates judged generation 1, and best.pt was chosen on them
     assert 0.0 <= rows[1]["val_success"] <= 1.0 and 0.0 <= rows[1]["val_learner_crash"] <= 1.0
-    assert json.loads((out / "best.json").read_text())["judged_by"].startswith("highest val_")
+    best = json.loads((out / "best.json").read_text())
+    assert best["judged_by"].startswith("highest val_")
+    # the commit that trained it, as best.pt holds it
+    assert best["commit"] == torch.load(out / "best.pt", weights_only=True)["commit"]
     # the population measured as a team, every generation: each member with copies of
     # itself, and teams drawn from it
     for row in rows:

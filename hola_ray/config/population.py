@@ -62,6 +62,12 @@ class GrapherConfig:
     """(l − 1)-sets of members sampled for the learner's hyperedges, as the paper's Grapher
     builds them (§IV-B); 0 = every one, which keeps the hypergraph regular, and then φ
     from the Myerson value is φ from the mean reward (results/NOTEBOOK.md, on hola_r)"""
+    initial_edges: int = 0
+    """hyperedges of a taken G_0 (a shipped or adopted build) the run keeps, drawn with its
+    seed so that every member keeps one; 0 = every one. G_0 is complete, so regular: φ from
+    the Myerson value is φ from the mean reward until a learner joins, and with
+    `population.preferred_only` few join. With 4 members and l 3, 3 of the 4 make hola's
+    φ depart from hola_r's from generation 1 (docs/plan.md)"""
     workers: int = 2
     """evaluation actors (`hola_ray.population.evaluators`): they play a generation's
     hyperedge chunks side by side, and the monitors while the next generation trains; 0 =
@@ -76,3 +82,4 @@ class GrapherConfig:
         positive_int("grapher", self, "workers", minimum=0, maximum=10_000)
         positive_int("grapher", self, "chunks", maximum=10_000)
         positive_int("grapher", self, "edges_per_learner", minimum=0, maximum=10**6)
+        positive_int("grapher", self, "initial_edges", minimum=0, maximum=10**6)

@@ -101,6 +101,13 @@ class HyFoG:
         else:
             self._edges[key] = (weight, episodes)
 
+    def remove_edge(self, nodes: Iterable[NodeId]) -> None:
+        """Remove the hyperedge of this node set."""
+        key = frozenset(nodes)
+        if key not in self._edges:
+            raise HyFoGError(f"no hyperedge {sorted(map(str, key))}")
+        del self._edges[key]
+
     def weight(self, nodes: Iterable[NodeId]) -> float:
         """The weight of this node set's hyperedge."""
         key = frozenset(nodes)

@@ -168,6 +168,7 @@ class Trainer:
             l=c.l,
             seed=c.seed,
             edges_per_learner=c.grapher.edges_per_learner,
+            initial_edges=c.grapher.initial_edges,
             method=c.method,
             rival=method.rival(c),
             tags=self.tags or {},

@@ -43,7 +43,10 @@ def to_action(fx, fy, max_turn):
 
 
 @njit(cache=True, inline="always")
-def repel(fx, fy, obs, n, k_obst, k_mates, n_mates, scale, far, obst_range, obst_gain, mate_range, mate_gain):  # fmt: skip
+def repel(
+    fx, fy, obs, n, k_obst, k_mates, n_mates, scale, far,
+    obst_range, obst_gain, mate_range, mate_gain,
+):  # fmt: skip
     """(fx, fy) less a soft repulsion from the nearest obstacle point nearer than
     `obst_range` and from each seen teammate nearer than `mate_range`: each a unit vector
     away from it, weighted gain · (range − distance) / range."""

@@ -25,6 +25,10 @@ from hola_ray.population.rundir import RunDir
 from hola_ray.population.state import Decision, EdgeResult, Population
 from hola_ray.population.telemetry import Telemetry
 
+INITIAL_EDGES_STREAM = 3
+"""the generator stream of G_0's thinning (`grapher.initial_edges`); a generation's
+candidate hyperedges and decisions draw on streams 1 and 2"""
+
 
 def run_id(run_dir: str) -> str:
     """A run's name on the cluster: its folder name and a hash of its full path, so that two
@@ -91,6 +95,9 @@ class CoordinatorSettings:
     """the run's seed: the sampled hyperedges' and decisions' generators"""
     edges_per_learner: int
     """grapher.edges_per_learner: (l − 1)-sets sampled per learner, 0 = every one"""
+    initial_edges: int
+    """grapher.initial_edges: G_0's hyperedges kept when the run goes on from generation 0,
+    0 = every one"""
     method: str
     rival: Rules | None = None
     """the rule whose φ each generation's is compared with (`phi_tv`), if any; where there
@@ -120,6 +127,9 @@ class Coordinator:
         else:
             state = self.run.read_json(self.generation, "state.json")
             self.population = saved_population(state, population)
+            if self.generation == 0:  # the same draw on every start from generation 0
+                rng = np.random.default_rng([self.seed, 0, INITIAL_EDGES_STREAM])
+                self.population.thin(settings.initial_edges, rng)
             self.rules.setup(self.population)  # one adopted from another method's build
             self.last_metrics = self.run.metrics(self.generation)
         self.phase = "idle"

@@ -235,6 +235,8 @@ class RunDir:
         }
         if validated:
             info |= {k: float(row[k]) for k in ("val_success", "val_collision")}
+        if export.get("commit"):
+            info["commit"] = export["commit"]  # the commit that trained it, as best.pt says
         atomic_torch_save(export, self.best)
         atomic_write_text(self.best_info, json.dumps(info, indent=1))
         return True

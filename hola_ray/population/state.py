@@ -111,6 +111,23 @@ class Population:
         """Every l-set of members: the hyperedges of G_0."""
         return [tuple(c) for c in itertools.combinations(self.members, self.l)]
 
+    def thin(self, count: int, rng: np.random.Generator) -> list[tuple[int, ...]]:
+        """Keep `count` of the members' hyperedges (all when `count` is 0 or at least their
+        number), drawn by `rng` among the draws that leave every member in one at least;
+        returns the node sets removed. A complete G_0 is regular, and on a regular
+        hypergraph φ from the Myerson value is φ from the mean reward: a thinned one is not."""
+        edges = [e.nodes for e in self.hyfog.edges if set(e.nodes) <= set(self.members)]
+        if not 0 < count < len(edges):
+            return []
+        for _ in range(10_000):
+            keep = set(rng.choice(len(edges), size=count, replace=False).tolist())
+            if {v for k in keep for v in edges[k]} == set(self.members):
+                gone = [edges[k] for k in range(len(edges)) if k not in keep]
+                for nodes in gone:
+                    self.hyfog.remove_edge(nodes)
+                return gone
+        raise ValueError(f"no {count} of the {len(edges)} hyperedges hold every member")
+
     def candidate_edges(self, count: int, rng: np.random.Generator) -> list[tuple[int, ...]]:
         """The candidate with `count` distinct (l − 1)-sets of members (all when count is 0
         or at least their number), in a fixed order."""

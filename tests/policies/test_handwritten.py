@@ -107,7 +107,9 @@ def test_surround_flanks_away_from_a_teammate_on_the_same_evader(config):
     assert two < one < 0.5  # turns right, away from the teammate's side
     obs[0, 0:3] = (0.08, 0.0, 0.0)  # the evader 0.4 m ahead, within `close`
     obs[0, 8:10] = (0.1, 60 / 180)
-    assert Surround(config, SurroundConfig(flank=2.0, mate_range=0.1)).act(obs)[0] == pytest.approx(0.5)
+    assert Surround(config, SurroundConfig(flank=2.0, mate_range=0.1)).act(obs)[0] == pytest.approx(
+        0.5
+    )
 
 
 def test_surround_leaves_an_evader_its_share_of_teammates_holds(config):

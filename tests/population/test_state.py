@@ -164,6 +164,78 @@ def test_hola_and_hola_r_part_only_when_a_sampled_candidate_joins():
     assert phi_tie([*rows, {"phi_tv": tv}], "myerson") is None
 
 
+def test_a_thinned_generation_zero_parts_hola_from_hola_r_before_any_join():
+    """`grapher.initial_edges` 3 of G_0's 4: every member keeps a hyperedge, one member is
+    in all three (degree 3 against 2), and φ from the Myerson value leaves φ from the mean
+    reward at once; the draw is the generator's alone, and 0 keeps every hyperedge."""
+    from hola_ray.population.coordinator import INITIAL_EDGES_STREAM
+
+    def g0():
+        p = Population(l=3, max_size=6, top_m=4, preferred_only=True)
+        p.add_initial(4)
+        p.record([edge(e, w) for e, w in zip(
+            [(0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)], [96.8, 90.7, 97.4, 91.8], strict=True
+        )])  # fmt: skip
+        return p
+
+    whole = g0()
+    assert whole.thin(0, np.random.default_rng(0)) == [] and len(whole.hyfog.edges) == 4
+    assert whole.thin(4, np.random.default_rng(0)) == []
+    rules = [InverseValue(kind, 0.1) for kind in ("myerson", "mean_reward")]
+    assert total_variation(*(r.phi(whole) for r in rules)) == pytest.approx(0, abs=1e-12)
+    removed = set()
+    for seed in range(12):
+        p = g0()
+        rng = np.random.default_rng([seed, 0, INITIAL_EDGES_STREAM])
+        gone = p.thin(3, rng)
+        again = g0().thin(3, np.random.default_rng([seed, 0, INITIAL_EDGES_STREAM]))
+        assert gone == again and len(gone) == 1 and len(p.hyfog.edges) == 3
+        degrees = sorted(sum(v in e.nodes for e in p.hyfog.edges) for v in p.members)
+        assert degrees == [2, 2, 2, 3]
+        assert total_variation(*(r.phi(p) for r in rules)) > 0.15
+        removed.add(gone[0])
+    assert len(removed) > 1  # the seed decides which
+    with pytest.raises(ValueError, match="no 1 of the 4 hyperedges hold every member"):
+        g0().thin(1, np.random.default_rng(0))
+
+
+def test_a_run_going_on_from_a_shipped_generation_zero_thins_it_by_its_seed(tmp_path):
+    """The coordinator, started on a run directory whose generation 0 is a shipped build,
+    keeps `grapher.initial_edges` of G_0's hyperedges, the same ones for every method of a
+    seed (hola and hola_r are paired) and on every start; the build's own files keep all."""
+    from hola_ray.config.population import PopulationConfig
+    from hola_ray.homes import POOLS
+    from hola_ray.population.coordinator import Coordinator, CoordinatorSettings
+
+    donor = RunDir(POOLS / "populations" / "mep-3v2-s0")
+    actor = Coordinator.__ray_metadata__.modified_class  # the class, without Ray
+
+    def start(folder, kind, seed, initial_edges=3):
+        run = RunDir(tmp_path / folder)
+        if not run.generations.is_dir():
+            run.generations.mkdir(parents=True)
+            run.adopt_generation_zero(donor)
+        settings = CoordinatorSettings(
+            rules=InverseValue(kind, 0.1),
+            population=PopulationConfig(max_size=10, top_m=4, preferred_only=True),
+            l=3,
+            seed=seed,
+            edges_per_learner=3,
+            initial_edges=initial_edges,
+            method=kind,
+        )
+        c = actor(str(run.root), settings)
+        return c, {frozenset(e.nodes) for e in c.population.hyfog.edges}
+
+    hola, edges = start("hola-s7", "myerson", 7)
+    rival, rival_edges = start("hola_r-s7", "mean_reward", 7)
+    assert len(edges) == 3 and edges == rival_edges
+    assert start("hola-s7", "myerson", 7)[1] == edges  # a second start draws the same
+    assert total_variation(hola.rules.phi(hola.population), rival.rules.phi(rival.population)) > 0.1
+    assert len(start("whole-s7", "myerson", 7, initial_edges=0)[1]) == 4
+    assert len(donor.read_json(0, "state.json")["population"]["hyfog"]["edges"]) == 4
+
+
 def test_the_coordinators_process_never_loads_torch(tmp_path):
     """The coordinator writes and reads torch files as bytes (`TorchFile`), imports
     tensorboardX without torch, and unpickles every method's rules without importing the
