@@ -29,6 +29,31 @@ Rect = tuple[float, float, float, float]
 Region = tuple[float, float, float, float]
 """A spawn region as (x_min, x_max, y_min, y_max), metres."""
 
+Disc = tuple[float, float, float]
+"""A round obstacle as (centre_x, centre_y, radius), metres."""
+
+PAPER_BARS: tuple[Rect, ...] = (
+    (1.225, 1.05, 0.65, 0.10),
+    (2.375, 1.05, 0.65, 0.10),
+    (1.80, 2.50, 0.65, 0.10),
+    (1.225, 3.95, 0.65, 0.10),
+    (2.375, 3.95, 0.65, 0.10),
+)
+"""The paper's five bars (Table I), in its 3.6 m × 5 m arena."""
+
+ARENAS: dict[str, tuple[tuple[Rect, ...], tuple[Disc, ...]]] = {
+    "open": ((), ()),
+    "bar": (((1.80, 2.50, 2.40, 0.10),), ()),
+    "blocks": (((0.95, 1.70, 0.50, 0.50), (2.65, 3.30, 0.50, 0.50)), ((1.80, 2.50, 0.35),)),
+    "paper": (PAPER_BARS, ()),
+}
+"""The named layouts of the 3.6 m × 5 m arena, easiest first (contract §6): walls only; one
+bar across the middle, 0.6 m gaps at its ends; two 0.5 m squares and a disc of 0.35 m
+radius; the paper's five bars. Each as (boxes, discs); the spawn strips stay clear."""
+
+CUSTOM_ARENA = "custom"
+"""`env.arena` of a scenario that gives its own `obstacles` and `discs`"""
+
 
 @dataclass(frozen=True)
 class EvaderConfig:
@@ -187,14 +212,13 @@ class PursuitConfig:
     """arena extent along x; the walls are obstacles"""
     arena_height: float = 5.0
     """arena extent along y"""
-    obstacles: tuple[Rect, ...] = (
-        (1.225, 1.05, 0.65, 0.10),
-        (2.375, 1.05, 0.65, 0.10),
-        (1.80, 2.50, 0.65, 0.10),
-        (1.225, 3.95, 0.65, 0.10),
-        (2.375, 3.95, 0.65, 0.10),
-    )
-    """bars as (centre_x, centre_y, width, height)"""
+    arena: str | None = None
+    """the layout: `open`, `bar`, `blocks` or `paper` (`ARENAS`), or `custom` with the
+    `obstacles` and `discs` given; unset: `paper`, or `custom` when either is given"""
+    obstacles: tuple[Rect, ...] | None = None
+    """boxes (bars and squares) as (centre_x, centre_y, width, height); unset: the arena's"""
+    discs: tuple[Disc, ...] | None = None
+    """round obstacles as (centre_x, centre_y, radius); unset: the arena's"""
     n_pursuers: int = 3
     """pursuers per episode (the learner and its teammates)"""
     n_evaders: int = 2
@@ -250,7 +274,9 @@ class PursuitConfig:
         self._check_pursuer_model()
         self._check_unobserved_distance()
         self._check_counts()
+        self._resolve_arena()
         self._check_obstacles()
+        self._check_layout()
         self._check_spawn()
 
     def _check_magnitudes(self) -> None:
@@ -324,8 +350,49 @@ class PursuitConfig:
         require(isinstance(value, int) and value >= 1, "horizon", "an integer >= 1", value)
         require(value <= 10**6, "horizon", "an integer in [1, 1,000,000]", value)
 
+    def _resolve_arena(self) -> None:
+        """The arena's name and its obstacles, each from the other where unset: obstacles
+        given without a name are the named arena they equal (an older manifest's paper bars
+        are `paper`), else `custom`."""
+        name = self.arena
+        if name is None and self.obstacles is None and self.discs is None:
+            name = "paper"
+        elif name is None:
+            given = (tuple(self.obstacles or ()), tuple(self.discs or ()))
+            name = next((k for k, layout in ARENAS.items() if layout == given), CUSTOM_ARENA)
+        known = [*ARENAS, CUSTOM_ARENA]
+        require(name in known, "arena", f"one of {', '.join(known)}", name)
+        boxes, discs = ARENAS.get(name, ((), ()))
+        object.__setattr__(self, "arena", name)
+        for key, layout in (("obstacles", boxes), ("discs", discs)):
+            if getattr(self, key) is None:
+                object.__setattr__(self, key, layout)
+
+    def _check_layout(self) -> None:
+        """A named arena's obstacles are its own."""
+        if self.arena == CUSTOM_ARENA:
+            return
+        for key, layout in zip(("obstacles", "discs"), ARENAS[self.arena], strict=True):
+            value = getattr(self, key)
+            require(
+                tuple(value) == layout, key, f"arena {self.arena}'s own (or arena: custom)", value
+            )
+
     def _check_obstacles(self) -> None:
-        """Each bar a box of positive size wholly inside the arena."""
+        """Each box of positive size and each disc of positive radius, wholly inside the
+        arena."""
+        for i, disc in enumerate(self.discs):
+            name = f"discs[{i}]"
+            require(len(disc) == 3, name, "(centre_x, centre_y, radius)", disc)
+            cx, cy, r = disc
+            require(r > 0, name, "of positive radius", disc)
+            inside = r <= cx <= self.arena_width - r and r <= cy <= self.arena_height - r
+            require(
+                inside,
+                name,
+                f"inside the arena [0, {self.arena_width}] × [0, {self.arena_height}]",
+                disc,
+            )
         for i, rect in enumerate(self.obstacles):
             name = f"obstacles[{i}]"
             require(len(rect) == 4, name, "(centre_x, centre_y, width, height)", rect)
@@ -398,8 +465,8 @@ class PursuitConfig:
                 if not isinstance(section, Mapping):
                     raise ConfigError(f"{name} must be a mapping, got {section!r}")
                 kwargs[name] = sub(**consume_fields(sub, section, f"{name}."))
-        for key in ("obstacles",):
-            if key in kwargs:
+        for key in ("obstacles", "discs"):
+            if kwargs.get(key) is not None:
                 kwargs[key] = tuple(tuple(float(v) for v in rect) for rect in kwargs[key])
         for key in ("pursuer_spawn", "evader_spawn"):
             if key in kwargs:
@@ -425,6 +492,7 @@ class PursuitConfig:
         """A plain, YAML-safe mapping that `from_dict` reads back to an equal config."""
         out = dataclasses.asdict(self)
         out["obstacles"] = [list(rect) for rect in self.obstacles]
+        out["discs"] = [list(disc) for disc in self.discs]
         out["pursuer_spawn"] = list(self.pursuer_spawn)
         out["evader_spawn"] = list(self.evader_spawn)
         return out

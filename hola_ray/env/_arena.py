@@ -65,8 +65,9 @@ class Params(NamedTuple):
 
     fp: np.ndarray  # [N_FLOAT_PARAMS] float64, indexed by F_*
     ip: np.ndarray  # [N_INT_PARAMS] int64, indexed by I_*
-    rects: np.ndarray  # [K, 4] bars as (x_min, y_min, x_max, y_max)
+    rects: np.ndarray  # [K, 4] boxes as (x_min, y_min, x_max, y_max)
     spawn: np.ndarray  # [2, 4] pursuer then evader spawn region (x0, x1, y0, y1)
+    discs: np.ndarray  # [K, 3] discs as (centre_x, centre_y, radius)
 
 
 class Arena(NamedTuple):
@@ -161,13 +162,25 @@ def pack_params(config: PursuitConfig) -> Params:
         dtype=np.float64,
     ).reshape(-1, 4)
     spawn = np.array([config.pursuer_spawn, config.evader_spawn], dtype=np.float64)
-    return Params(fp, ip, rects, spawn)
+    discs = np.array(config.discs, dtype=np.float64).reshape(-1, 3)
+    return Params(fp, ip, rects, spawn, discs)
 
 
 # ---- geometry -------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def nearest_on_disc(px, py, cx, cy, r):
+    """Nearest point (qx, qy) of a disc's rim to (px, py), and its distance (0 inside)."""
+    dx, dy = px - cx, py - cy
+    dc = norm(dx, dy)
+    if dc <= 0.0:
+        return cx + r, cy, 0.0
+    return cx + r * dx / dc, cy + r * dy / dc, max(dc - r, 0.0)
+
+
 @njit(cache=True)
-def nearest_static(px, py, rects, width, height):
-    """Nearest point (qx, qy) on the walls or any bar to (px, py), and its distance."""
+def nearest_static(px, py, rects, discs, width, height):
+    """Nearest point (qx, qy) on the walls, any box or any disc to (px, py), and its
+    distance."""
     qx, qy, best = 0.0, py, px  # left wall
     if width - px < best:
         qx, qy, best = width, py, width - px
@@ -179,6 +192,10 @@ def nearest_static(px, py, rects, width, height):
         cx = min(max(px, rects[k, 0]), rects[k, 2])
         cy = min(max(py, rects[k, 1]), rects[k, 3])
         d = norm(px - cx, py - cy)
+        if d < best:
+            qx, qy, best = cx, cy, d
+    for k in range(discs.shape[0]):
+        cx, cy, d = nearest_on_disc(px, py, discs[k, 0], discs[k, 1], discs[k, 2])
         if d < best:
             qx, qy, best = cx, cy, d
     return qx, qy, best

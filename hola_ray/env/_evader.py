@@ -29,6 +29,7 @@ from hola_ray.env._arena import (
     F_WIDTH,
     I_HOLD_MAX,
     I_HOLD_MIN,
+    nearest_on_disc,
     nearest_static,
 )
 from hola_ray.env.geometry import norm, wrap
@@ -48,8 +49,8 @@ def _repulse(px, py, qx, qy, d, gain, reach, offset):
 
 
 @njit(cache=True)
-def evader_repulsion(px, py, rects, width, height, gain, reach, offset):
-    """Sum of repulsions from the nearest point of each wall and bar within reach."""
+def evader_repulsion(px, py, rects, discs, width, height, gain, reach, offset):
+    """Sum of repulsions from the nearest point of each wall, box and disc within reach."""
     fx, fy = 0.0, 0.0
     # walls: left, right, bottom, top
     gx, gy = _repulse(px, py, 0.0, py, px, gain, reach, offset)
@@ -68,6 +69,11 @@ def evader_repulsion(px, py, rects, width, height, gain, reach, offset):
         cx = min(max(px, rects[k, 0]), rects[k, 2])
         cy = min(max(py, rects[k, 1]), rects[k, 3])
         d = norm(px - cx, py - cy)
+        gx, gy = _repulse(px, py, cx, cy, d, gain, reach, offset)
+        fx += gx
+        fy += gy
+    for k in range(discs.shape[0]):
+        cx, cy, d = nearest_on_disc(px, py, discs[k, 0], discs[k, 1], discs[k, 2])
         gx, gy = _repulse(px, py, cx, cy, d, gain, reach, offset)
         fx += gx
         fy += gy
@@ -206,16 +212,17 @@ def evader_heading(b, e, p, s):
     oppose; slip between two close pursuers when the gap is reachable first. The heading
     change is bounded by the evader's max turn.
     """
-    fp, rects = p.fp, p.rects
+    fp, rects, discs = p.fp, p.rects, p.discs
     ex = s.epos[b, e, 0]
     ey = s.epos[b, e, 1]
     h = s.ehead[b, e]
     flee_x, flee_y, n_flee, n_slip, d_min, i1, i2 = _pursuers_near(b, ex, ey, p, s)
-    _, _, d_obs = nearest_static(ex, ey, rects, fp[F_WIDTH], fp[F_HEIGHT])
+    _, _, d_obs = nearest_static(ex, ey, rects, discs, fp[F_WIDTH], fp[F_HEIGHT])
     rep_x, rep_y = evader_repulsion(
         ex,
         ey,
         rects,
+        discs,
         fp[F_WIDTH],
         fp[F_HEIGHT],
         fp[F_E_REP_GAIN],

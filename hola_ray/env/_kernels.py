@@ -78,7 +78,7 @@ def _place(rng, b, out, n, region, separation):
 @njit(cache=True)
 def reset_episode(b, p, s):
     """Draw a fresh initial state for episode b from its own stream."""
-    fp, ip, rects, spawn = p
+    fp, ip, rects, spawn, discs = p
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
      t, done, collided, captures, ep_return, rng, pvel, pcmd) = s
@@ -120,7 +120,7 @@ def reset_masked(mask, p, s, obs):
 @njit(cache=True)
 def observe(b, p, s, obs):
     """Write every pursuer's egocentric observation of episode b into obs[b] (contract §1)."""
-    fp, ip, rects, spawn = p
+    fp, ip, rects, spawn, discs = p
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
      t, done, collided, captures, ep_return, rng, pvel, pcmd) = s
@@ -148,7 +148,7 @@ def observe(b, p, s, obs):
                 obs[b, i, k + 1] = 0.0
                 obs[b, i, k + 2] = 0.0
             k += 3
-        qx, qy, d = nearest_static(px, py, rects, width, height)
+        qx, qy, d = nearest_static(px, py, rects, discs, width, height)
         for j in range(n_p):
             if j != i and not pactive[b, j]:
                 dj = norm(ppos[b, j, 0] - px, ppos[b, j, 1] - py)
@@ -245,7 +245,7 @@ def _respond(b, i, h, beta, delayed, fp, s):
 def _move_evaders(b, p, s, new_heading):
     """Each live evader takes its decided heading; a move that would end closer than
     min_clearance to a wall or bar is not made."""
-    fp, rects = p.fp, p.rects
+    fp, rects, discs = p.fp, p.rects, p.discs
     step_e = fp[F_V_E] * fp[F_DT]
     for e in range(s.epos.shape[1]):
         if s.ealive[b, e]:
@@ -253,7 +253,7 @@ def _move_evaders(b, p, s, new_heading):
             s.ehead[b, e] = h
             nx = s.epos[b, e, 0] + step_e * math.cos(h)
             ny = s.epos[b, e, 1] + step_e * math.sin(h)
-            _, _, clearance = nearest_static(nx, ny, rects, fp[F_WIDTH], fp[F_HEIGHT])
+            _, _, clearance = nearest_static(nx, ny, rects, discs, fp[F_WIDTH], fp[F_HEIGHT])
             if clearance >= fp[F_E_MIN_CLEAR]:
                 s.epos[b, e, 0] = nx
                 s.epos[b, e, 1] = ny
@@ -296,7 +296,7 @@ def _collisions(b, p, s, reward, disabled):
     """Collisions: walls, bars and disabled pursuers (safe radius); active pairs (κ); and
     the proximity penalties (obstacles, disabled pursuers; active teammates). A pursuer
     that collided is disabled."""
-    fp, rects, ppos, pactive = p.fp, p.rects, s.ppos, s.pactive
+    fp, rects, discs, ppos, pactive = p.fp, p.rects, p.discs, s.ppos, s.pactive
     n_p = ppos.shape[1]
     any_collision = False
     for i in range(n_p):
@@ -304,7 +304,7 @@ def _collisions(b, p, s, reward, disabled):
             continue
         px = ppos[b, i, 0]
         py = ppos[b, i, 1]
-        _, _, d = nearest_static(px, py, rects, fp[F_WIDTH], fp[F_HEIGHT])
+        _, _, d = nearest_static(px, py, rects, discs, fp[F_WIDTH], fp[F_HEIGHT])
         hit = d < fp[F_SAFE]
         near_obstacle = d < fp[F_OBSTACLE_REACH]
         near_mates = 0.0

@@ -25,11 +25,13 @@ def _colour(palette: tuple[str, ...], i: int) -> str:
 
 
 def draw_arena(ax: Axes, config: PursuitConfig) -> None:
-    """Walls, bars and the two spawn regions."""
+    """Walls, boxes, discs and the two spawn regions."""
     w, h = config.arena_width, config.arena_height
     ax.add_patch(patches.Rectangle((0, 0), w, h, fill=False, lw=2, ec="black"))
     for cx, cy, bw, bh in config.obstacles:
         ax.add_patch(patches.Rectangle((cx - bw / 2, cy - bh / 2), bw, bh, color="black"))
+    for cx, cy, r in config.discs:
+        ax.add_patch(patches.Circle((cx, cy), r, color="black"))
     for region, colour in ((config.pursuer_spawn, "#d62728"), (config.evader_spawn, "#1f77b4")):
         x0, x1, y0, y1 = region
         ax.add_patch(

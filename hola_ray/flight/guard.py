@@ -60,7 +60,7 @@ class Guard:
     @staticmethod
     def _neighbours(config: PursuitConfig, pos: np.ndarray, flying: np.ndarray):
         """(nearest point [B, n, 2], contact distance, share of the closing speed) of each
-        wall, bar and other drone; a point that does not apply is NaN."""
+        wall, box, disc and other drone; a point that does not apply is NaN."""
         x, y = pos[..., 0], pos[..., 1]
         safe = config.safe_radius
         for wall in (
@@ -75,6 +75,10 @@ class Guard:
                 [np.clip(x, cx - w / 2, cx + w / 2), np.clip(y, cy - h / 2, cy + h / 2)], axis=-1
             )
             yield bar, safe, 1.0
+        for cx, cy, r in config.discs:
+            off = np.stack([x - cx, y - cy], axis=-1)
+            far = np.maximum(np.linalg.norm(off, axis=-1, keepdims=True), 1e-9)
+            yield np.array([cx, cy]) + r * off / far, safe, 1.0
         n = pos.shape[1]
         for j in range(1, n):  # the drone j seats along, for every seat at once
             other = np.roll(pos, -j, axis=1)

@@ -65,9 +65,9 @@ def test_infos_carry_metrics_at_the_end():
     assert infos and all(set(info) >= {"success", "collision", "length"} for info in infos.values())
 
 
-def _drive(k: int, seeds: list[int], actions_for) -> None:
+def _drive(k: int, seeds: list[int], actions_for, config: PursuitConfig | None = None) -> None:
     """Step a batch of k and k single envs with the same actions; compare every output."""
-    config = PursuitConfig()
+    config = config or PursuitConfig()
     batch = BatchedPursuit(config, k)
     batch_obs = batch.reset(seeds=seeds).copy()
     singles = [PursuitEnv(config) for _ in range(k)]

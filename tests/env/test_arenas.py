@@ -1,0 +1,97 @@
+"""The four named arenas and their obstacles of three shapes (contract §6): the config, the
+geometry worked by hand, and every arena × team size through PettingZoo's API test with the
+batched core matching the PettingZoo env step for step."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pettingzoo.test import parallel_api_test
+from test_pettingzoo import _drive  # tests/env is on the path (pytest prepends it)
+
+from hola_ray.config.scenario import ARENAS, PAPER_BARS
+from hola_ray.env import BatchedPursuit, ConfigError, PursuitConfig
+from hola_ray.env._arena import nearest_on_disc, nearest_static, pack_params
+from hola_ray.env.pettingzoo_env import PursuitEnv
+
+SIZES = [(n_p, n_e) for n_p in (2, 3, 4, 5) for n_e in (1, 2, 3)]
+
+
+def test_a_named_arena_brings_its_obstacles_and_a_given_set_is_custom():
+    assert PursuitConfig().arena == "paper" and PursuitConfig().obstacles == PAPER_BARS
+    assert PursuitConfig().discs == ()
+    open_room = PursuitConfig(arena="open")
+    assert open_room.obstacles == () and open_room.discs == ()
+    blocks = PursuitConfig.from_dict({"arena": "blocks"})
+    assert (blocks.obstacles, blocks.discs) == ARENAS["blocks"] and len(blocks.discs) == 1
+    assert PursuitConfig.from_dict(blocks.to_dict()) == blocks  # a manifest round trip
+    mine = PursuitConfig.from_dict({"discs": [[1.0, 2.0, 0.3]]})
+    assert mine.arena == "custom" and mine.obstacles == () and mine.discs == ((1.0, 2.0, 0.3),)
+    # an older manifest: the paper's bars, no arena key
+    old = {k: v for k, v in PursuitConfig().to_dict().items() if k not in ("arena", "discs")}
+    assert PursuitConfig.from_dict(old) == PursuitConfig()
+    with pytest.raises(ConfigError, match="arena must be one of open, bar, blocks, paper"):
+        PursuitConfig.from_dict({"arena": "moon"})
+    with pytest.raises(ConfigError, match="obstacles must be arena open's own"):
+        PursuitConfig.from_dict({"arena": "open", "obstacles": [[1, 1, 0.5, 0.5]]})
+    with pytest.raises(ConfigError, match=r"discs\[0\] must be inside the arena"):
+        PursuitConfig.from_dict({"discs": [[0.1, 1.0, 0.3]]})
+    with pytest.raises(ConfigError, match=r"discs\[0\] must be of positive radius"):
+        PursuitConfig.from_dict({"discs": [[1.0, 1.0, 0.0]]})
+
+
+@pytest.mark.parametrize("arena", list(ARENAS))
+def test_every_arena_leaves_the_spawn_strips_clear(arena):
+    config = PursuitConfig(arena=arena)
+    for x0, x1, y0, y1 in (config.pursuer_spawn, config.evader_spawn):
+        for x in np.linspace(x0, x1, 13):
+            for y in np.linspace(y0, y1, 5):
+                for cx, cy, w, h in config.obstacles:  # the walls aside
+                    gap = math.hypot(max(abs(x - cx) - w / 2, 0), max(abs(y - cy) - h / 2, 0))
+                    assert gap > 0.15, (arena, x, y)
+                for cx, cy, r in config.discs:
+                    assert math.hypot(x - cx, y - cy) - r > 0.15, (arena, x, y)
+
+
+def test_the_nearest_point_of_a_disc_by_hand():
+    assert nearest_on_disc(3.0, 4.0, 0.0, 0.0, 1.0) == pytest.approx((0.6, 0.8, 4.0))
+    assert nearest_on_disc(0.2, 0.0, 0.0, 0.0, 1.0)[2] == 0.0  # inside: touching
+    config = PursuitConfig(arena="blocks")
+    p = pack_params(config)
+    # beside the disc at (1.8, 2.5), r 0.35: 0.15 m off its rim, nearer than any box or wall
+    qx, qy, d = nearest_static(1.8 + 0.5, 2.5, p.rects, p.discs, 3.6, 5.0)
+    assert (qx, qy, d) == pytest.approx((2.15, 2.5, 0.15))
+
+
+def test_a_pursuer_flying_into_the_disc_collides_and_the_room_has_none():
+    """A pursuer set 0.3 m below the blocks arena's disc, heading straight at it (+y), at
+    0.03 m a step: nearer than the safe radius 0.1 after (0.3 − 0.1) / 0.03 = 6.7 steps, so
+    disabled at step 7; in the open room the same flight is clear."""
+    start = {"pursuer_pos": np.array([[1.8, 1.85], [0.3, 0.5], [3.3, 0.5]])}
+    steps = {}
+    for arena in ("blocks", "open"):
+        env = BatchedPursuit(PursuitConfig(arena=arena), 1)
+        env.reset(seeds=[0], initial_state={0: start})
+        for t in range(8):
+            result = env.step(np.array([[0.5, 0.5, 0.5]]))
+            if result.disabled[0, 0]:
+                steps[arena] = t + 1
+                break
+    assert steps == {"blocks": 7}
+
+
+@pytest.mark.parametrize("arena", list(ARENAS))
+@pytest.mark.parametrize(("n_p", "n_e"), SIZES)
+def test_pettingzoo_api_on_every_arena_and_team_size(arena, n_p, n_e):
+    config = PursuitConfig(arena=arena, n_pursuers=n_p, n_evaders=n_e, horizon=120)
+    parallel_api_test(PursuitEnv(config), num_cycles=150)
+
+
+@pytest.mark.parametrize("arena", list(ARENAS))
+@pytest.mark.parametrize(("n_p", "n_e"), SIZES)
+def test_the_batched_core_matches_pettingzoo_on_every_arena_and_team_size(arena, n_p, n_e):
+    config = PursuitConfig(arena=arena, n_pursuers=n_p, n_evaders=n_e, horizon=250)
+    rng = np.random.default_rng(n_p * 10 + n_e)
+    _drive(3, [1, 2, 3], lambda t, obs: rng.random((3, n_p)), config)
