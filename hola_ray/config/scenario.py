@@ -261,6 +261,14 @@ class PursuitConfig:
     """append each other pursuer's heading relative to the observer's (/ π; 0 beyond d_p or
     disabled) after the own block (`ObsLayout.headings`); the observation's first
     entries are unchanged, so policies trained without it read them"""
+    obs_pursuers: int | None = None
+    """pursuer slots of the observation (the observer and its teammates): a team smaller
+    than this fills the rest as unobserved teammates; unset (or `n_pursuers`): the team's
+    own (`pursuer_slots`). One policy then plays every team up to this size (contract
+    §6.2); `dataclasses.replace` of `n_pursuers` keeps the slots"""
+    obs_evaders: int | None = None
+    """evader slots of the observation, the ones beyond `n_evaders` read as captured;
+    unset (or `n_evaders`): the scenario's own (`evader_slots`)"""
     reward: RewardConfig = field(default_factory=RewardConfig)
     """each pursuer's reward (contract §1)"""
     evader: EvaderConfig = field(default_factory=EvaderConfig)
@@ -349,6 +357,15 @@ class PursuitConfig:
         value = self.horizon
         require(isinstance(value, int) and value >= 1, "horizon", "an integer >= 1", value)
         require(value <= 10**6, "horizon", "an integer in [1, 1,000,000]", value)
+        for name, team in (("obs_pursuers", "n_pursuers"), ("obs_evaders", "n_evaders")):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            at_least = getattr(self, team)
+            ok = isinstance(value, int) and not isinstance(value, bool) and value >= at_least
+            require(ok, name, f"an integer >= {team} ({at_least})", value)
+            if value == at_least:  # no slot beyond the team: the same scenario as unset
+                object.__setattr__(self, name, None)
 
     def _resolve_arena(self) -> None:
         """The arena's name and its obstacles, each from the other where unset: obstacles
@@ -445,7 +462,23 @@ class PursuitConfig:
         """Where each reading sits in one pursuer's observation."""
         diagonal = math.hypot(self.arena_width, self.arena_height)
         far = max(self.unobserved_distance, diagonal / self.obs_distance_scale)
-        return ObsLayout(self.n_pursuers, self.n_evaders, self.observe_headings, far)
+        return ObsLayout(self.pursuer_slots, self.evader_slots, self.observe_headings, far)
+
+    @property
+    def pursuer_slots(self) -> int:
+        """Pursuers the observation holds: `obs_pursuers`, or the team's own."""
+        return self.obs_pursuers or self.n_pursuers
+
+    @property
+    def evader_slots(self) -> int:
+        """Evaders the observation holds: `obs_evaders`, or the scenario's own."""
+        return self.obs_evaders or self.n_evaders
+
+    def in_arena(self, name: str) -> PursuitConfig:
+        """This scenario in the named arena (`ARENAS`), its obstacles with it."""
+        if name not in ARENAS:
+            raise ConfigError(f"arena must be one of {', '.join(ARENAS)}, got {name!r}")
+        return dataclasses.replace(self, arena=name, obstacles=None, discs=None)
 
     @property
     def obs_dim(self) -> int:

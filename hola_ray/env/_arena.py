@@ -57,7 +57,9 @@ I_HOLD_MIN = 1
 I_HOLD_MAX = 2
 I_RESPONSE_DELAY = 3
 I_HEADINGS = 4
-N_INT_PARAMS = 5
+I_OBS_PURSUERS = 5
+I_OBS_EVADERS = 6
+N_INT_PARAMS = 7
 
 
 class Params(NamedTuple):
@@ -154,6 +156,8 @@ def pack_params(config: PursuitConfig) -> Params:
             ev.wander_hold_max,
             config.pursuer_response_delay,
             int(config.observe_headings),
+            config.pursuer_slots,
+            config.evader_slots,
         ],
         dtype=np.int64,
     )

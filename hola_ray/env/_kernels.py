@@ -44,6 +44,8 @@ from hola_ray.env._arena import (
     F_WIDTH,
     I_HEADINGS,
     I_HORIZON,
+    I_OBS_EVADERS,
+    I_OBS_PURSUERS,
     I_RESPONSE_DELAY,
     Arena,
     Params,
@@ -148,6 +150,11 @@ def observe(b, p, s, obs):
                 obs[b, i, k + 1] = 0.0
                 obs[b, i, k + 2] = 0.0
             k += 3
+        for _ in range(n_e, ip[I_OBS_EVADERS]):  # slots beyond the scenario: captured
+            obs[b, i, k] = far
+            obs[b, i, k + 1] = 0.0
+            obs[b, i, k + 2] = 0.0
+            k += 3
         qx, qy, d = nearest_static(px, py, rects, discs, width, height)
         for j in range(n_p):
             if j != i and not pactive[b, j]:
@@ -170,6 +177,10 @@ def observe(b, p, s, obs):
                 obs[b, i, k] = far
                 obs[b, i, k + 1] = 0.0
             k += 2
+        for _ in range(n_p, ip[I_OBS_PURSUERS]):  # slots beyond the team: unobserved
+            obs[b, i, k] = far
+            obs[b, i, k + 1] = 0.0
+            k += 2
         obs[b, i, k] = px / width
         obs[b, i, k + 1] = py / height
         obs[b, i, k + 2] = math.cos(h)
@@ -182,6 +193,9 @@ def observe(b, p, s, obs):
                 d = norm(ppos[b, j, 0] - px, ppos[b, j, 1] - py)
                 seen = pactive[b, j] and d <= fp[F_PERCEPTION]
                 obs[b, i, k] = wrap(phead[b, j] - h) / math.pi if seen else 0.0
+                k += 1
+            for _ in range(n_p, ip[I_OBS_PURSUERS]):
+                obs[b, i, k] = 0.0
                 k += 1
 
 

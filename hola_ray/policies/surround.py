@@ -69,6 +69,7 @@ class Surround(Policy):
             lay.obstacle,
             lay.teammates,
             lay.n_pursuers - 1,
+            cfg.n_pursuers,
             cfg.obs_distance_scale,
             cfg.unobserved_distance,
             cfg.max_turn,
@@ -88,16 +89,17 @@ def _wrap(a):
 
 
 @njit(cache=True)
-def _target(obs, n, n_e, k_mates, n_mates, scale, far):
+def _target(obs, n, n_e, k_mates, n_mates, team, scale, far):
     """The evader row n takes: the nearest live one that fewer than its share of teammates
-    are nearer to (the nearest live one if every evader is taken); −1 when none is live."""
+    are nearer to (the nearest live one if every evader is taken); −1 when none is live.
+    The share is the team's `team` pursuers over the live evaders, rounded up."""
     live = 0
     for e in range(n_e):
         if obs[n, 3 * e] < far:
             live += 1
     if live == 0:
         return -1
-    share = (n_mates + 1 + live - 1) // live
+    share = (team + live - 1) // live
     best, best_d, best_taken = -1, 1e9, True
     for e in range(n_e):
         if obs[n, 3 * e] >= far:
@@ -119,13 +121,13 @@ def _target(obs, n, n_e, k_mates, n_mates, scale, far):
 
 @njit(cache=True)
 def _surround(
-    obs, n_e, k_obst, k_mates, n_mates, scale, far, max_turn,
+    obs, n_e, k_obst, k_mates, n_mates, team, scale, far, max_turn,
     flank, spread, close, obst_range, obst_gain, mate_range, mate_gain,
 ):  # fmt: skip
     out = np.empty(obs.shape[0])
     for n in range(obs.shape[0]):
         fx, fy = 0.0, 0.0
-        e = _target(obs, n, n_e, k_mates, n_mates, scale, far)
+        e = _target(obs, n, n_e, k_mates, n_mates, team, scale, far)
         if e >= 0:
             ex, ey, d = _ego.point(obs, n, 3 * e, scale)
             d = max(d, 1e-6)

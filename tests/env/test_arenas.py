@@ -4,6 +4,7 @@ batched core matching the PettingZoo env step for step."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -95,3 +96,47 @@ def test_the_batched_core_matches_pettingzoo_on_every_arena_and_team_size(arena,
     config = PursuitConfig(arena=arena, n_pursuers=n_p, n_evaders=n_e, horizon=250)
     rng = np.random.default_rng(n_p * 10 + n_e)
     _drive(3, [1, 2, 3], lambda t, obs: rng.random((3, n_p)), config)
+
+
+def test_observation_slots_pad_a_smaller_team_and_every_hand_written_policy_reads_them():
+    """`obs_pursuers` 5 and `obs_evaders` 3 at 3 vs 2: each pursuer's observation is the
+    paper's with an unobserved teammate slot (distance `unobserved_distance`, bearing 0)
+    after each block's real ones; a hand-written pursuer acts the same on either."""
+    from hola_ray.policies import make_policy
+
+    plain = PursuitConfig(observe_headings=True)
+    slots = PursuitConfig(observe_headings=True, obs_pursuers=5, obs_evaders=3)
+    assert (plain.pursuer_slots, plain.evader_slots) == (3, 2) and plain.obs_pursuers is None
+    assert PursuitConfig(obs_pursuers=3) == plain.__class__()  # no slot beyond the team
+    assert dataclasses.replace(slots, n_pursuers=4).pursuer_slots == 5
+    assert dataclasses.replace(plain, n_evaders=3).evader_slots == 3
+    assert PursuitConfig().in_arena("blocks") == PursuitConfig(arena="blocks")
+    assert slots.obs_dim == plain.obs_dim + 3 + 2 * 2 + 2  # an evader, 2 teammates, 2 headings
+    a, b = BatchedPursuit(plain, 4), BatchedPursuit(slots, 4)
+    a.reset(seeds=[0, 1, 2, 3])
+    b.reset(seeds=[0, 1, 2, 3])
+    for _ in range(30):
+        a.step(np.full((4, 3), 0.55))
+        b.step(np.full((4, 3), 0.55))
+    la, lb = plain.layout, slots.layout
+    far = plain.unobserved_distance
+    for i in range(3):
+        x, y = a.obs[:, i], b.obs[:, i]
+        np.testing.assert_array_equal(x[:, :6], y[:, :6])  # the two evaders
+        np.testing.assert_array_equal(y[:, 6:9], np.tile([far, 0, 0], (4, 1)))
+        np.testing.assert_array_equal(
+            x[:, la.obstacle : la.own], y[:, lb.obstacle : lb.obstacle + 6]
+        )
+        np.testing.assert_array_equal(y[:, lb.obstacle + 6 : lb.own], np.tile([far, 0] * 2, (4, 1)))
+        np.testing.assert_array_equal(x[:, la.own : la.base_dim], y[:, lb.own : lb.base_dim])
+        np.testing.assert_array_equal(x[:, la.base_dim :], y[:, lb.base_dim : lb.base_dim + 2])
+        np.testing.assert_array_equal(y[:, lb.base_dim + 2 :], 0.0)
+    for name in ("greedy", "vicsek", "apf-a-3", "surround-1", "surround-2"):
+        got = make_policy(name, slots).act(b.obs.reshape(-1, slots.obs_dim))
+        want = make_policy(name, plain).act(a.obs.reshape(-1, plain.obs_dim))
+        np.testing.assert_array_equal(got, want, err_msg=name)
+    assert PursuitConfig.from_dict(slots.to_dict()) == slots
+    old = {k: v for k, v in plain.to_dict().items() if not k.startswith("obs_")}
+    assert PursuitConfig.from_dict(old) == plain
+    with pytest.raises(ConfigError, match=r"obs_pursuers must be an integer >= n_pursuers \(4\)"):
+        PursuitConfig(n_pursuers=4, obs_pursuers=3)
