@@ -205,6 +205,45 @@ class RewardConfig:
 
 
 @dataclass(frozen=True)
+class TeamChangeConfig:
+    """Teammates who join and leave within an episode (contract §6.3). Off by default: every
+    pursuer in play from the start to the end, as the paper has it."""
+
+    present: int | None = None
+    """pursuers in play at the start, the first `fixed` seats among them and the rest drawn;
+    the others wait, out of play, to join; unset: all `n_pursuers`"""
+    changes: int = 0
+    """team changes per episode: at each, a teammate in play and not crashed leaves (it
+    lands: out of play, no obstacle, not observed) or one that waits joins at the pursuers'
+    spawn, a coin deciding where both can happen"""
+    window: tuple[float, float] = (0.1, 0.6)
+    """the share of the horizon the changes' times are drawn in, uniformly"""
+    min_team: int = 1
+    """no leave takes the pursuers in play below this"""
+    fixed: int = 1
+    """seats 0..fixed−1 start in play and never leave: the seats a learner controls"""
+
+    def __post_init__(self) -> None:
+        for name, low in (("changes", 0), ("min_team", 1), ("fixed", 0)):
+            value = getattr(self, name)
+            ok = isinstance(value, int) and not isinstance(value, bool) and value >= low
+            require(ok, f"team.{name}", f"an integer >= {low}", value)
+        if self.present is not None:
+            ok = isinstance(self.present, int) and not isinstance(self.present, bool)
+            require(ok and self.present >= 1, "team.present", "an integer >= 1", self.present)
+        ok = len(self.window) == 2 and all(_is_number(v) for v in self.window)
+        require(ok, "team.window", "two numbers (start, end)", self.window)
+        object.__setattr__(self, "window", tuple(float(v) for v in self.window))
+        lo, hi = self.window
+        require(0.0 <= lo < hi <= 1.0, "team.window", "0 <= start < end <= 1", self.window)
+
+    @property
+    def open(self) -> bool:
+        """The team may differ from all pursuers in play throughout."""
+        return self.changes > 0 or self.present is not None
+
+
+@dataclass(frozen=True)
 class PursuitConfig:
     """The pursuit scenario of contract §1 (paper Table I). Units: metres, seconds, radians."""
 
@@ -271,6 +310,8 @@ class PursuitConfig:
     unset (or `n_evaders`): the scenario's own (`evader_slots`)"""
     reward: RewardConfig = field(default_factory=RewardConfig)
     """each pursuer's reward (contract §1)"""
+    team: TeamChangeConfig = field(default_factory=TeamChangeConfig)
+    """teammates who join and leave within an episode (contract §6.3); off by default"""
     evader: EvaderConfig = field(default_factory=EvaderConfig)
     """the escaper's parameters (contract §2)"""
 
@@ -285,6 +326,7 @@ class PursuitConfig:
         self._resolve_arena()
         self._check_obstacles()
         self._check_layout()
+        self._check_team()
         self._check_spawn()
 
     def _check_magnitudes(self) -> None:
@@ -366,6 +408,17 @@ class PursuitConfig:
             require(ok, name, f"an integer >= {team} ({at_least})", value)
             if value == at_least:  # no slot beyond the team: the same scenario as unset
                 object.__setattr__(self, name, None)
+
+    def _check_team(self) -> None:
+        """The team's changes fit the team: the fixed seats and the smallest team within
+        the pursuers, and at the start as many in play as the fixed seats at least."""
+        team, n = self.team, self.n_pursuers
+        require(team.fixed <= n, "team.fixed", f"<= n_pursuers ({n})", team.fixed)
+        require(team.min_team <= n, "team.min_team", f"<= n_pursuers ({n})", team.min_team)
+        if team.present is not None:
+            low = max(team.fixed, 1)
+            ok = low <= team.present <= n
+            require(ok, "team.present", f"in [{low}, n_pursuers = {n}]", team.present)
 
     def _resolve_arena(self) -> None:
         """The arena's name and its obstacles, each from the other where unset: obstacles
@@ -492,7 +545,11 @@ class PursuitConfig:
         if not isinstance(data, Mapping):
             raise ConfigError(f"a pursuit config must be a mapping, got {type(data).__name__}")
         kwargs = consume_fields(cls, data, "")
-        for name, sub in (("evader", EvaderConfig), ("reward", RewardConfig)):
+        for name, sub in (
+            ("evader", EvaderConfig),
+            ("reward", RewardConfig),
+            ("team", TeamChangeConfig),
+        ):
             section = kwargs.pop(name, None)
             if section is not None:
                 if not isinstance(section, Mapping):
@@ -526,6 +583,7 @@ class PursuitConfig:
         out = dataclasses.asdict(self)
         out["obstacles"] = [list(rect) for rect in self.obstacles]
         out["discs"] = [list(disc) for disc in self.discs]
+        out["team"]["window"] = list(self.team.window)
         out["pursuer_spawn"] = list(self.pursuer_spawn)
         out["evader_spawn"] = list(self.evader_spawn)
         return out

@@ -49,7 +49,9 @@ F_APPROACH_OWN = 33
 F_RESPONSE = 34
 F_SHARED = 35
 F_MATE_GRADED = 36
-N_FLOAT_PARAMS = 37
+F_TEAM_FROM = 37
+F_TEAM_TO = 38
+N_FLOAT_PARAMS = 39
 
 # ---- packed integer parameters ------------------------------------------------------
 I_HORIZON = 0
@@ -59,7 +61,11 @@ I_RESPONSE_DELAY = 3
 I_HEADINGS = 4
 I_OBS_PURSUERS = 5
 I_OBS_EVADERS = 6
-N_INT_PARAMS = 7
+I_TEAM_PRESENT = 7
+I_TEAM_CHANGES = 8
+I_TEAM_MIN = 9
+I_TEAM_FIXED = 10
+N_INT_PARAMS = 11
 
 
 class Params(NamedTuple):
@@ -93,6 +99,9 @@ class Arena(NamedTuple):
     rng: np.ndarray  # [B] uint64 SplitMix64 stream states
     pvel: np.ndarray  # [B, n_p, 2] pursuer velocities (the response model; else unused)
     pcmd: np.ndarray  # [B, n_p, 2] the velocity commanded a step ago (response delay 1)
+    ppresent: np.ndarray  # [B, n_p] bool, in play (not landed, not waiting to join)
+    pwaiting: np.ndarray  # [B, n_p] bool, not yet in play: may join
+    change_t: np.ndarray  # [B, K] int64, the steps of the team's changes (K ≥ 1)
 
 
 class StepOut(NamedTuple):
@@ -149,6 +158,7 @@ def pack_params(config: PursuitConfig) -> Params:
     fp[F_E_MIN_CLEAR] = ev.min_clearance
     fp[F_SPAWN_SEP] = config.spawn_separation
     fp[F_RESPONSE] = config.pursuer_response
+    fp[F_TEAM_FROM], fp[F_TEAM_TO] = config.team.window
     ip = np.array(
         [
             config.horizon,
@@ -158,6 +168,10 @@ def pack_params(config: PursuitConfig) -> Params:
             int(config.observe_headings),
             config.pursuer_slots,
             config.evader_slots,
+            config.team.present or config.n_pursuers,
+            config.team.changes,
+            config.team.min_team,
+            config.team.fixed,
         ],
         dtype=np.int64,
     )

@@ -38,6 +38,8 @@ from hola_ray.env._arena import (
     F_SAFE,
     F_SHARED,
     F_SPAWN_SEP,
+    F_TEAM_FROM,
+    F_TEAM_TO,
     F_UNOBSERVED,
     F_V_E,
     F_V_P,
@@ -47,6 +49,10 @@ from hola_ray.env._arena import (
     I_OBS_EVADERS,
     I_OBS_PURSUERS,
     I_RESPONSE_DELAY,
+    I_TEAM_CHANGES,
+    I_TEAM_FIXED,
+    I_TEAM_MIN,
+    I_TEAM_PRESENT,
     Arena,
     Params,
     StepOut,
@@ -83,7 +89,8 @@ def reset_episode(b, p, s):
     fp, ip, rects, spawn, discs = p
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
-     t, done, collided, captures, ep_return, rng, pvel, pcmd) = s
+     t, done, collided, captures, ep_return, rng, pvel, pcmd, ppresent, pwaiting,
+     change_t) = s
     # fmt: on
     _place(rng, b, ppos[b], ppos.shape[1], spawn[0], fp[F_SPAWN_SEP])
     _place(rng, b, epos[b], epos.shape[1], spawn[1], fp[F_SPAWN_SEP])
@@ -106,6 +113,41 @@ def reset_episode(b, p, s):
     done[b] = False
     collided[b] = False
     captures[b] = 0
+    for i in range(ppos.shape[1]):
+        ppresent[b, i] = True
+        pwaiting[b, i] = False
+    if ip[I_TEAM_PRESENT] < ppos.shape[1] or ip[I_TEAM_CHANGES] > 0:
+        _open_team(b, ip, fp, s)
+
+
+@njit(cache=True)
+def _open_team(b, ip, fp, s):
+    """Episode b's team as it starts, and when it will change (contract §6.3): all but
+    `present` of the seats beyond the fixed ones wait out of play, drawn from the episode's
+    stream; the changes' steps are drawn in the window of the horizon, in order."""
+    n_p = s.ppos.shape[1]
+    waiting = n_p - ip[I_TEAM_PRESENT]
+    free = n_p - ip[I_TEAM_FIXED]
+    for k in range(waiting):  # the k-th waiting seat: drawn among the free seats in play
+        pick = _rng.integer(s.rng, b, 0, free - k - 1)
+        for i in range(ip[I_TEAM_FIXED], n_p):
+            if s.ppresent[b, i]:
+                if pick == 0:
+                    s.ppresent[b, i] = False
+                    s.pactive[b, i] = False
+                    s.pwaiting[b, i] = True
+                    break
+                pick -= 1
+    horizon = ip[I_HORIZON]
+    lo = max(1, int(fp[F_TEAM_FROM] * horizon))
+    hi = max(lo, int(fp[F_TEAM_TO] * horizon))
+    for k in range(ip[I_TEAM_CHANGES]):
+        when = _rng.integer(s.rng, b, lo, hi)
+        j = k
+        while j > 0 and s.change_t[b, j - 1] > when:  # insertion: the steps in order
+            s.change_t[b, j] = s.change_t[b, j - 1]
+            j -= 1
+        s.change_t[b, j] = when
 
 
 @njit(cache=True, parallel=True)
@@ -125,7 +167,8 @@ def observe(b, p, s, obs):
     fp, ip, rects, spawn, discs = p
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
-     t, done, collided, captures, ep_return, rng, pvel, pcmd) = s
+     t, done, collided, captures, ep_return, rng, pvel, pcmd, ppresent, pwaiting,
+     change_t) = s
     # fmt: on
     n_p = ppos.shape[1]
     n_e = epos.shape[1]
@@ -157,7 +200,7 @@ def observe(b, p, s, obs):
             k += 3
         qx, qy, d = nearest_static(px, py, rects, discs, width, height)
         for j in range(n_p):
-            if j != i and not pactive[b, j]:
+            if j != i and not pactive[b, j] and ppresent[b, j]:  # a crashed one, in play
                 dj = norm(ppos[b, j, 0] - px, ppos[b, j, 1] - py)
                 if dj < d:
                     qx, qy, d = ppos[b, j, 0], ppos[b, j, 1], dj
@@ -334,7 +377,7 @@ def _collisions(b, p, s, reward, disabled):
                         near_mates += min(1.0, (fp[F_MATE_REACH] - dj) / span) if span > 0 else 1.0
                     else:
                         near_mates += 1.0
-            else:
+            elif s.ppresent[b, j]:  # a crashed pursuer is an obstacle; a landed one is not
                 hit = hit or dj < fp[F_SAFE]
                 near_obstacle = near_obstacle or dj < fp[F_OBSTACLE_REACH]
         if near_obstacle:
@@ -366,6 +409,70 @@ def _share(b, s, reward, disabled):
 
 
 @njit(cache=True)
+def _change_team(b, p, s):
+    """The team's changes due at this step: a teammate in play, not crashed and not in a
+    fixed seat leaves (while more than `min_team` are in play), or a waiting one joins at
+    the pursuers' spawn, heading +y; a coin from the episode's stream decides where both
+    can happen."""
+    ip = p.ip
+    n_p = s.ppos.shape[1]
+    for k in range(s.change_t.shape[1]):
+        if s.change_t[b, k] != s.t[b]:
+            continue
+        in_play, leavers, joiners = 0, 0, 0
+        for i in range(n_p):
+            in_play += s.ppresent[b, i]
+            leavers += s.pactive[b, i] and i >= ip[I_TEAM_FIXED]
+            joiners += s.pwaiting[b, i]
+        can_leave = leavers > 0 and in_play > ip[I_TEAM_MIN]
+        if not can_leave and joiners == 0:
+            continue
+        leave = can_leave and (joiners == 0 or _rng.uniform(s.rng, b) < 0.5)
+        pick = _rng.integer(s.rng, b, 0, (leavers if leave else joiners) - 1)
+        for i in range(n_p):
+            eligible = (s.pactive[b, i] and i >= ip[I_TEAM_FIXED]) if leave else s.pwaiting[b, i]
+            if not eligible:
+                continue
+            if pick > 0:
+                pick -= 1
+                continue
+            if leave:
+                s.pactive[b, i] = False
+                s.ppresent[b, i] = False
+            else:
+                _join(b, i, p, s)
+            break
+
+
+@njit(cache=True)
+def _join(b, i, p, s):
+    """Seat i comes into play at a point of the pursuers' spawn region, clear of the
+    pursuers in play by the spawn separation where 1,000 draws find one."""
+    fp, region = p.fp, p.spawn[0]
+    for _ in range(1000):
+        x = region[0] + _rng.uniform(s.rng, b) * (region[1] - region[0])
+        y = region[2] + _rng.uniform(s.rng, b) * (region[3] - region[2])
+        clear = True
+        for j in range(s.ppos.shape[1]):
+            if (
+                s.ppresent[b, j]
+                and norm(x - s.ppos[b, j, 0], y - s.ppos[b, j, 1]) < fp[F_SPAWN_SEP]
+            ):
+                clear = False
+        if clear:
+            break
+    s.ppos[b, i, 0] = x
+    s.ppos[b, i, 1] = y
+    s.phead[b, i] = 0.5 * math.pi
+    for k in range(2):
+        s.pvel[b, i, k] = 0.0
+        s.pcmd[b, i, k] = 0.0
+    s.pactive[b, i] = True
+    s.ppresent[b, i] = True
+    s.pwaiting[b, i] = False
+
+
+@njit(cache=True)
 def step_episode(b, actions, placed, p, s, out):
     """Advance episode b by one step with pursuer actions [n_p] in [0, 1] (already clipped);
     `placed`: [B, n_p, 2] where outside dynamics flew the pursuers, or empty (kinematic)."""
@@ -382,6 +489,8 @@ def step_episode(b, actions, placed, p, s, out):
     if done[b]:
         return
     t[b] += 1
+    if ip[I_TEAM_CHANGES] > 0:
+        _change_team(b, p, s)
 
     # distances before the move, for the approach term
     for i in range(n_p):
@@ -412,6 +521,12 @@ def step_episode(b, actions, placed, p, s, out):
     for i in range(n_p):
         if pactive[b, i]:
             all_down = False
+    if all_down and ip[I_TEAM_CHANGES] > 0:  # unless a teammate may still join
+        for k in range(s.change_t.shape[1]):
+            if s.change_t[b, k] > t[b]:
+                for i in range(n_p):
+                    if s.pwaiting[b, i]:
+                        all_down = False
     if all_caught or all_down:
         terminated[b] = True
         done[b] = True

@@ -60,6 +60,9 @@ class BatchedPursuit:
             rng=_rng.seed_state(np.arange(B)),
             pvel=np.zeros((B, n_p, 2)),
             pcmd=np.zeros((B, n_p, 2)),
+            ppresent=np.zeros((B, n_p), dtype=bool),
+            pwaiting=np.zeros((B, n_p), dtype=bool),
+            change_t=np.zeros((B, max(config.team.changes, 1)), dtype=np.int64),
         )
         self._out = _kernels.StepOut(
             obs=np.zeros((B, n_p, self.layout.dim), dtype=np.float32),
@@ -75,7 +78,9 @@ class BatchedPursuit:
         arena = self._arena
         self.pursuer_pos = arena.ppos  # [B, n_p, 2] metres
         self.pursuer_heading = arena.phead  # [B, n_p] radians
-        self.pursuer_active = arena.pactive  # [B, n_p] bool
+        self.pursuer_active = arena.pactive  # [B, n_p] bool: in play and not crashed
+        self.pursuer_present = arena.ppresent  # [B, n_p] bool: in play (crashed or not)
+        self.pursuer_waiting = arena.pwaiting  # [B, n_p] bool: not yet in play, may join
         self.evader_pos = arena.epos  # [B, n_e, 2]
         self.evader_heading = arena.ehead  # [B, n_e]
         self.evader_alive = arena.ealive  # [B, n_e] bool

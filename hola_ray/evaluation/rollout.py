@@ -172,7 +172,7 @@ def _play(
         env.t.copy(),
         env.episode_return.sum(axis=1),
         env.captures.copy(),
-        ~env.pursuer_active,
+        env.pursuer_present & ~env.pursuer_active,  # crashed in play (not landed or waiting)
     )
 
 

@@ -140,3 +140,83 @@ def test_observation_slots_pad_a_smaller_team_and_every_hand_written_policy_read
     assert PursuitConfig.from_dict(old) == plain
     with pytest.raises(ConfigError, match=r"obs_pursuers must be an integer >= n_pursuers \(4\)"):
         PursuitConfig(n_pursuers=4, obs_pursuers=3)
+
+
+def _team_env(**team):
+    config = PursuitConfig.from_dict({"n_pursuers": 5, "team": team})
+    return config, BatchedPursuit(config, 64)
+
+
+def test_a_team_that_starts_short_keeps_its_waiting_seats_out_of_play():
+    """`team.present` 3 of 5: seat 0 (fixed) and two drawn seats in play; the two waiting
+    are neither observed nor obstacles, and the draw is the episode's own."""
+    config, env = _team_env(present=3)
+    env.reset(seeds=np.arange(64))
+    present = env.pursuer_present.copy()
+    assert (present.sum(axis=1) == 3).all() and present[:, 0].all()
+    assert (env.pursuer_waiting == ~present).all() and (env.pursuer_active == present).all()
+    assert len({tuple(row) for row in present.tolist()}) > 3  # the seats are drawn
+    again = BatchedPursuit(config, 64)
+    again.reset(seeds=np.arange(64))
+    np.testing.assert_array_equal(again.pursuer_present, present)
+    lay = config.layout
+    for b in range(8):
+        for i in np.flatnonzero(present[b]):
+            mates = [j for j in range(5) if j != i]
+            for slot, j in enumerate(mates):
+                distance = env.obs[b, i, lay.teammates + 2 * slot]
+                if not present[b, j]:
+                    assert distance == config.unobserved_distance
+    # a pursuer put on a waiting seat's spot does not collide with it
+    b = 0
+    waiting, playing = np.flatnonzero(~present[b]), np.flatnonzero(present[b])
+    spot = env.pursuer_pos[b].copy()
+    spot[playing[1]] = spot[waiting[0]] + [0.05, 0.0]
+    env.reset(mask=np.eye(64, dtype=bool)[0], seeds=[0], initial_state={0: {"pursuer_pos": spot}})
+    result = env.step(np.full((64, 5), 0.5))
+    assert not result.disabled[0].any()
+
+
+def test_teammates_leave_and_join_at_drawn_steps_within_the_rules():
+    """Four changes in the window 0.1–0.6 of the horizon: the team in play changes by one at
+    each, never below `min_team`, never seat 0; a joiner appears in the pursuers' spawn
+    heading +y (it then moved one step straight on); a leaver is out of play for good."""
+    config, env = _team_env(present=3, changes=4, min_team=2)
+    env.reset(seeds=np.arange(64))
+    lo, hi = int(0.1 * config.horizon), int(0.6 * config.horizon)
+    before = env.pursuer_present.copy()
+    joined = left = 0
+    x0, x1, y0, y1 = config.pursuer_spawn
+    for _ in range(hi + 1):
+        env.step(np.full((64, 5), 0.5))
+        now = env.pursuer_present
+        for b in np.flatnonzero(~env.done | (now != before).any(axis=1)):
+            for i in np.flatnonzero(now[b] != before[b]):
+                assert lo <= env.t[b] <= hi and i != 0
+                if now[b, i]:
+                    joined += 1
+                    assert not env.pursuer_waiting[b, i]
+                    assert env.pursuer_heading[b, i] == 0.5 * math.pi  # action 0.5: no turn
+                    px, py = env.pursuer_pos[b, i]
+                    assert x0 - 0.05 <= px <= x1 + 0.05 and y0 - 0.05 <= py <= y1 + 0.05
+                else:
+                    left += 1
+                    assert not env.pursuer_waiting[b, i]  # landed: it does not come back
+        assert (now[~env.done].sum(axis=1) >= 2).all()
+        before = now.copy()
+    assert joined > 20 and left > 20
+    assert env.pursuer_present[:, 0].all()
+
+
+def test_the_paper_team_draws_nothing_more():
+    """With the team closed (the default) no seat waits and the episode's stream is the
+    paper's: the same first 50 steps as a scenario whose team section is spelled out."""
+    a = BatchedPursuit(PursuitConfig(), 8)
+    b = BatchedPursuit(PursuitConfig.from_dict({"team": {"changes": 0, "present": None}}), 8)
+    a.reset(seeds=np.arange(8))
+    b.reset(seeds=np.arange(8))
+    for _ in range(50):
+        a.step(np.full((8, 3), 0.6))
+        b.step(np.full((8, 3), 0.6))
+    np.testing.assert_array_equal(a.evader_pos, b.evader_pos)
+    assert a.pursuer_present.all() and not a.pursuer_waiting.any()
