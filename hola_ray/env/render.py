@@ -180,3 +180,17 @@ def animate_trajectory(
         optimize=False,
     )
     return len(images)
+
+
+def arenas_figure(path: str) -> None:
+    """The named arenas side by side, their spawn strips dashed (docs/open-teams.md)."""
+    from hola_ray.config.scenario import ARENAS
+
+    fig = Figure(figsize=(2.5 * len(ARENAS), 3.6))
+    FigureCanvasAgg(fig)
+    for k, name in enumerate(ARENAS):
+        ax = fig.add_subplot(1, len(ARENAS), k + 1)
+        draw_arena(ax, PursuitConfig(arena=name))
+        ax.set_title(name)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)

@@ -220,3 +220,19 @@ def test_the_paper_team_draws_nothing_more():
         b.step(np.full((8, 3), 0.6))
     np.testing.assert_array_equal(a.evader_pos, b.evader_pos)
     assert a.pursuer_present.all() and not a.pursuer_waiting.any()
+
+
+def test_the_arena_drawing_holds_every_box_and_disc(tmp_path):
+    from matplotlib import patches
+    from matplotlib.figure import Figure
+
+    from hola_ray.env.render import arenas_figure, draw_arena
+
+    ax = Figure().add_subplot()
+    draw_arena(ax, PursuitConfig(arena="blocks"))
+    circles = [p for p in ax.patches if isinstance(p, patches.Circle)]
+    assert [(c.center, c.radius) for c in circles] == [((1.8, 2.5), 0.35)]
+    filled = [p for p in ax.patches if isinstance(p, patches.Rectangle) and p.get_fill()]
+    assert len(filled) == 2  # the two squares (the walls and spawn strips are outlines)
+    arenas_figure(str(tmp_path / "arenas.png"))
+    assert (tmp_path / "arenas.png").stat().st_size > 1000
