@@ -219,7 +219,7 @@ class TeamChangeConfig:
     window: tuple[float, float] = (0.1, 0.6)
     """the share of the horizon the changes' times are drawn in, uniformly"""
     min_team: int = 1
-    """no leave takes the pursuers in play below this"""
+    """no leave takes the pursuers flying (in play, not crashed) below this"""
     fixed: int = 1
     """seats 0..fixed−1 start in play and never leave: the seats a learner controls"""
 

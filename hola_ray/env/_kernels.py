@@ -411,7 +411,7 @@ def _share(b, s, reward, disabled):
 @njit(cache=True)
 def _change_team(b, p, s):
     """The team's changes due at this step: a teammate in play, not crashed and not in a
-    fixed seat leaves (while more than `min_team` are in play), or a waiting one joins at
+    fixed seat leaves (while more than `min_team` fly), or a waiting one joins at
     the pursuers' spawn, heading +y; a coin from the episode's stream decides where both
     can happen."""
     ip = p.ip
@@ -419,12 +419,12 @@ def _change_team(b, p, s):
     for k in range(s.change_t.shape[1]):
         if s.change_t[b, k] != s.t[b]:
             continue
-        in_play, leavers, joiners = 0, 0, 0
+        flying, leavers, joiners = 0, 0, 0
         for i in range(n_p):
-            in_play += s.ppresent[b, i]
+            flying += s.pactive[b, i]
             leavers += s.pactive[b, i] and i >= ip[I_TEAM_FIXED]
             joiners += s.pwaiting[b, i]
-        can_leave = leavers > 0 and in_play > ip[I_TEAM_MIN]
+        can_leave = leavers > 0 and flying > ip[I_TEAM_MIN]
         if not can_leave and joiners == 0:
             continue
         leave = can_leave and (joiners == 0 or _rng.uniform(s.rng, b) < 0.5)
@@ -521,12 +521,6 @@ def step_episode(b, actions, placed, p, s, out):
     for i in range(n_p):
         if pactive[b, i]:
             all_down = False
-    if all_down and ip[I_TEAM_CHANGES] > 0:  # unless a teammate may still join
-        for k in range(s.change_t.shape[1]):
-            if s.change_t[b, k] > t[b]:
-                for i in range(n_p):
-                    if s.pwaiting[b, i]:
-                        all_down = False
     if all_caught or all_down:
         terminated[b] = True
         done[b] = True

@@ -20,7 +20,9 @@ class PursuitEnv(ParallelEnv):
 
     Actions are `Box(0, 1, (1,))`: a turn of (2a − 1)·max_turn. A pursuer that collides
     terminates; the episode ends when every evader is caught or every pursuer is disabled,
-    and is truncated at the horizon. When it ends, `infos[agent]` holds the episode metrics
+    and is truncated at the horizon. With `env.team` (contract §6.3) the agents are the
+    pursuers in play: one that leaves terminates, one that joins appears among `agents`
+    with its first observation. When it ends, `infos[agent]` holds the episode metrics
     (success, collision, length, captures, team_return).
 
     `reset(seed=…, options=…)`: options may fix the initial state with any subset of
@@ -76,7 +78,8 @@ class PursuitEnv(ParallelEnv):
             state = {k: v for k, v in options.items() if k in INITIAL_STATE_KEYS}
             overrides = {0: state} if state else None
         self.core.reset(seeds=None if seed is None else [seed], initial_state=overrides)
-        self.agents = list(self.possible_agents)
+        in_play = self.core.pursuer_present[0]
+        self.agents = [a for a in self.possible_agents if in_play[self._index[a]]]
         return self._observations(), {agent: {} for agent in self.agents}
 
     def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
@@ -109,11 +112,19 @@ class PursuitEnv(ParallelEnv):
         result = self.core.step(self._actions)
 
         live = self.agents
-        obs = self._observations()
-        rewards = {a: float(result.reward[0, self._index[a]]) for a in live}
         ended = bool(result.terminated[0])
         truncated = bool(result.truncated[0])
-        terminations = {a: ended or bool(result.disabled[0, self._index[a]]) for a in live}
+        in_play, active = self.core.pursuer_present[0], self.core.pursuer_active[0]
+        # a teammate that left (landed) ends its own episode; one that joined starts its own
+        joined = [
+            a for a in self.possible_agents
+            if active[self._index[a]] and a not in live and not (ended or truncated)
+        ]  # fmt: skip
+        rewards = {a: float(result.reward[0, self._index[a]]) for a in live}
+        terminations = {
+            a: ended or bool(result.disabled[0, self._index[a]]) or not in_play[self._index[a]]
+            for a in live
+        }
         truncations = {a: truncated for a in live}
         if ended or truncated:
             metrics = self.core.episode_metrics(0)
@@ -122,7 +133,10 @@ class PursuitEnv(ParallelEnv):
             infos = {a: dict(metrics) | {"terminated": terminations[a]} for a in live}
         else:
             infos = {a: {} for a in live}
-        self.agents = [a for a in live if not (terminations[a] or truncations[a])]
+        self.agents = [a for a in live if not (terminations[a] or truncations[a])] + joined
+        obs = {a: self.core.obs[0, self._index[a]].copy() for a in [*live, *joined]}
+        for a in joined:  # in play from this step: no reward yet, its episode running
+            rewards[a], terminations[a], truncations[a], infos[a] = 0.0, False, False, {}
         return obs, rewards, terminations, truncations, infos
 
     def _observations(self) -> dict[str, np.ndarray]:
