@@ -183,8 +183,15 @@ def checked(hint: Any, value: Any, name: str, field_name: str | None = None) -> 
         options = typing.get_args(hint)
         if value is None and type(None) in options:
             return None
-        (inner,) = (o for o in options if o is not type(None))
-        return checked(inner, value, name, field_name)
+        inner = [o for o in options if o is not type(None)]
+        if len(inner) == 1:
+            return checked(inner[0], value, name, field_name)
+        for option in inner[:-1]:  # the first that takes the value; the last one's error else
+            try:
+                return checked(option, value, name, field_name)
+            except ConfigError:
+                continue
+        return checked(inner[-1], value, name, field_name)
     if origin is tuple:
         if not isinstance(value, list | tuple):
             fail("a list")

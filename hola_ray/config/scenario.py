@@ -209,9 +209,10 @@ class TeamChangeConfig:
     """Teammates who join and leave within an episode (contract §6.3). Off by default: every
     pursuer in play from the start to the end, as the paper has it."""
 
-    present: int | None = None
+    present: int | tuple[int, int] | None = None
     """pursuers in play at the start, the first `fixed` seats among them and the rest drawn;
-    the others wait, out of play, to join; unset: all `n_pursuers`"""
+    the others wait, out of play, to join. A pair [low, high]: drawn per episode, uniformly
+    (a team of any size in one batch); unset: all `n_pursuers`"""
     changes: int = 0
     """team changes per episode: at each, a teammate in play and not crashed leaves (it
     lands: out of play, no obstacle, not observed) or one that waits joins at the pursuers'
@@ -229,8 +230,22 @@ class TeamChangeConfig:
             ok = isinstance(value, int) and not isinstance(value, bool) and value >= low
             require(ok, f"team.{name}", f"an integer >= {low}", value)
         if self.present is not None:
-            ok = isinstance(self.present, int) and not isinstance(self.present, bool)
-            require(ok and self.present >= 1, "team.present", "an integer >= 1", self.present)
+            value = self.present
+            pair = tuple(value) if isinstance(value, list | tuple) else (value, value)
+            ok = len(pair) == 2 and all(
+                isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in pair
+            )
+            ok = ok and pair[0] <= pair[1]
+            require(ok, "team.present", "an integer >= 1 or a pair [low, high] of them", value)
+            if isinstance(value, list | tuple):
+                object.__setattr__(self, "present", pair)
+
+    @property
+    def present_range(self) -> tuple[int, int] | None:
+        """(low, high) of the pursuers in play at the start; None: all."""
+        if self.present is None:
+            return None
+        return self.present if isinstance(self.present, tuple) else (self.present, self.present)
         ok = len(self.window) == 2 and all(_is_number(v) for v in self.window)
         require(ok, "team.window", "two numbers (start, end)", self.window)
         object.__setattr__(self, "window", tuple(float(v) for v in self.window))
@@ -417,7 +432,8 @@ class PursuitConfig:
         require(team.min_team <= n, "team.min_team", f"<= n_pursuers ({n})", team.min_team)
         if team.present is not None:
             low = max(team.fixed, 1)
-            ok = low <= team.present <= n
+            lo, hi = team.present_range
+            ok = low <= lo and hi <= n
             require(ok, "team.present", f"in [{low}, n_pursuers = {n}]", team.present)
 
     def _resolve_arena(self) -> None:
@@ -584,6 +600,8 @@ class PursuitConfig:
         out["obstacles"] = [list(rect) for rect in self.obstacles]
         out["discs"] = [list(disc) for disc in self.discs]
         out["team"]["window"] = list(self.team.window)
+        if isinstance(self.team.present, tuple):
+            out["team"]["present"] = list(self.team.present)
         out["pursuer_spawn"] = list(self.pursuer_spawn)
         out["evader_spawn"] = list(self.evader_spawn)
         return out

@@ -65,7 +65,8 @@ I_TEAM_PRESENT = 7
 I_TEAM_CHANGES = 8
 I_TEAM_MIN = 9
 I_TEAM_FIXED = 10
-N_INT_PARAMS = 11
+I_TEAM_PRESENT_HIGH = 11
+N_INT_PARAMS = 12
 
 
 class Params(NamedTuple):
@@ -168,10 +169,11 @@ def pack_params(config: PursuitConfig) -> Params:
             int(config.observe_headings),
             config.pursuer_slots,
             config.evader_slots,
-            config.team.present or config.n_pursuers,
+            (config.team.present_range or (config.n_pursuers,) * 2)[0],
             config.team.changes,
             config.team.min_team,
             config.team.fixed,
+            (config.team.present_range or (config.n_pursuers,) * 2)[1],
         ],
         dtype=np.int64,
     )

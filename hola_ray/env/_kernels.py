@@ -53,6 +53,7 @@ from hola_ray.env._arena import (
     I_TEAM_FIXED,
     I_TEAM_MIN,
     I_TEAM_PRESENT,
+    I_TEAM_PRESENT_HIGH,
     Arena,
     Params,
     StepOut,
@@ -123,10 +124,14 @@ def reset_episode(b, p, s):
 @njit(cache=True)
 def _open_team(b, ip, fp, s):
     """Episode b's team as it starts, and when it will change (contract §6.3): all but
-    `present` of the seats beyond the fixed ones wait out of play, drawn from the episode's
-    stream; the changes' steps are drawn in the window of the horizon, in order."""
+    `present` of the seats beyond the fixed ones wait out of play (`present` itself drawn
+    in its range where it is one), drawn from the episode's stream; the changes' steps are
+    drawn in the window of the horizon, in order."""
     n_p = s.ppos.shape[1]
-    waiting = n_p - ip[I_TEAM_PRESENT]
+    present = ip[I_TEAM_PRESENT]
+    if ip[I_TEAM_PRESENT_HIGH] > present:  # a team size per episode
+        present = _rng.integer(s.rng, b, present, ip[I_TEAM_PRESENT_HIGH])
+    waiting = n_p - present
     free = n_p - ip[I_TEAM_FIXED]
     for k in range(waiting):  # the k-th waiting seat: drawn among the free seats in play
         pick = _rng.integer(s.rng, b, 0, free - k - 1)

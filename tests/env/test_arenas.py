@@ -271,3 +271,18 @@ def test_pettingzoo_agents_are_the_pursuers_in_play():
                 if term[a] and not env.core.pursuer_present[0, i]:
                     went += 1
     assert came > 5 and went > 5
+
+
+def test_a_team_size_drawn_per_episode():
+    """`team.present` [2, 5]: each episode of one batch starts with its own team, every
+    size from 2 to 5 among 64 episodes, seat 0 in play in each; a manifest round trip."""
+    config, env = _team_env(present=[2, 5])
+    assert config.team.present == (2, 5) and config.team.present_range == (2, 5)
+    assert PursuitConfig.from_dict(config.to_dict()) == config
+    env.reset(seeds=np.arange(64))
+    sizes = env.pursuer_present.sum(axis=1)
+    assert set(sizes.tolist()) == {2, 3, 4, 5} and env.pursuer_present[:, 0].all()
+    with pytest.raises(ConfigError, match="team.present must be in"):
+        PursuitConfig.from_dict({"n_pursuers": 3, "team": {"present": [2, 4]}})
+    with pytest.raises(ConfigError, match="a pair"):
+        PursuitConfig.from_dict({"n_pursuers": 3, "team": {"present": [3, 2]}})
