@@ -1,8 +1,10 @@
 """A learner among drawn teammates: the zero-shot evaluation's episodes (paper §V) and the
 validation teammates' (held-out protocol), one code path for both.
 
-Per seed, every episode seats the learner in a uniformly random seat and fills the other
-n_p − 1 seats with uniform draws (with replacement) from the teammates. The draws depend on
+Per seed, every episode seats the learner in a uniformly random seat (seat 0, which never
+leaves, when the team changes within the episode) and fills the other n_p − 1 seats with
+uniform draws (with replacement) from the teammates; a seat that waits to join plays its
+draw once it joins. The draws depend on
 the seed only, so every learner evaluated with the same seeds plays the same episodes.
 """
 
@@ -18,11 +20,15 @@ from hola_ray.evaluation.metrics import zero_shot_values
 from hola_ray.evaluation.rollout import rollout
 
 
-def draw_teams(rng: np.random.Generator, episodes: int, n_p: int, members: int) -> np.ndarray:
+def draw_teams(
+    rng: np.random.Generator, episodes: int, n_p: int, members: int, seat_zero: bool = False
+) -> np.ndarray:
     """[episodes, n_p] indices into [learner, member 1 … member M]: the learner (0) in a
-    uniformly random seat, every other seat a uniform draw from the members (1 … M)."""
+    uniformly random seat (`seat_zero`: in seat 0, the seat a team that changes never lets
+    go, contract §6.3), every other seat a uniform draw from the members (1 … M)."""
     teams = rng.integers(1, members + 1, size=(episodes, n_p))
-    teams[np.arange(episodes), rng.integers(0, n_p, size=episodes)] = 0
+    seats = rng.integers(0, n_p, size=episodes)
+    teams[np.arange(episodes), 0 if seat_zero else seats] = 0
     return teams
 
 
@@ -43,7 +49,7 @@ def play(
     n_p = config.n_pursuers
     for s in seeds:
         rng = np.random.default_rng(np.random.SeedSequence([int(s), 7]))
-        teams = draw_teams(rng, episodes, n_p, len(members))
+        teams = draw_teams(rng, episodes, n_p, len(members), config.team.open)
         result = rollout(config, [learner, *members], episodes, assignment=teams, seed=int(s))
         learner_seat = teams == 0  # the learner is candidate 0, in one seat per episode
         for name, values in zero_shot_values(result, learner_seat, n_p).items():

@@ -286,3 +286,29 @@ def test_a_team_size_drawn_per_episode():
         PursuitConfig.from_dict({"n_pursuers": 3, "team": {"present": [2, 4]}})
     with pytest.raises(ConfigError, match="a pair"):
         PursuitConfig.from_dict({"n_pursuers": 3, "team": {"present": [3, 2]}})
+
+
+def test_the_learner_sits_in_the_seat_that_stays_when_the_team_changes():
+    """Evaluation's teams: the learner in a random seat for a closed team (the draws as
+    they were), in seat 0 when the team changes; an open evaluation plays end to end and a
+    crash counts only for a seat in play."""
+    from hola_ray.evaluation.teams import draw_teams, play
+    from hola_ray.policies import make_policy
+
+    closed = draw_teams(np.random.default_rng(3), 500, 5, 2)
+    rng = np.random.default_rng(3)
+    mates = rng.integers(1, 3, size=(500, 5))
+    mates[np.arange(500), rng.integers(0, 5, size=500)] = 0
+    np.testing.assert_array_equal(closed, mates)
+    assert len(set(np.argwhere(closed == 0)[:, 1].tolist())) == 5
+    opened = draw_teams(np.random.default_rng(3), 500, 5, 2, seat_zero=True)
+    assert (opened[:, 0] == 0).all() and (opened[:, 1:] > 0).all()
+
+    config = PursuitConfig.from_dict(
+        {"arena": "blocks", "n_pursuers": 5, "team": {"present": [2, 5], "changes": 2}}
+    )
+    learner = make_policy("vicsek", config)
+    members = [make_policy(name, config) for name in ("greedy", "surround-1")]
+    played = play(learner, members, config, 40, [0])
+    assert played["success"].shape == (40,)
+    assert 0.0 <= played["learner_crash"].mean() <= played["collision"].mean() <= 1.0
