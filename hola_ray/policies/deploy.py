@@ -274,8 +274,30 @@ def manifest(
             "+y (π/2)"
         ),
         "unit_conventions": "metres, seconds, radians; arena frame origin at its lower-left corner",
+        "team": team_entry(config),
         "scenario": config.to_dict(),
         "source": dict(source),
+    }
+
+
+def team_entry(config: PursuitConfig) -> dict[str, Any]:
+    """The teams and arena a policy of this scenario plays (contract §6): its observation's
+    slots hold any team up to them, the missing teammates read as unobserved and the
+    missing evaders as captured; the sizes and arena it was trained with."""
+    trained = config.team.present_range or (config.n_pursuers, config.n_pursuers)
+    return {
+        "pursuers": [1, config.pursuer_slots],
+        "evaders": [1, config.evader_slots],
+        "trained_pursuers": list(trained),
+        "trained_evaders": config.n_evaders,
+        "team_changes": config.team.changes,
+        "arena": config.arena,
+        "meaning": (
+            "teams of `pursuers` (the learner among them) against `evaders` fill the "
+            "observation's slots, the missing teammates as unobserved and the missing "
+            "evaders as captured; trained with teams of `trained_pursuers` against "
+            "`trained_evaders` in `arena`"
+        ),
     }
 
 
@@ -315,13 +337,12 @@ class OnnxPolicy(Policy):
         data = read_manifest(onnx_path)
         trained = PursuitConfig.from_dict(data["scenario"])
         super().__init__(config or trained)
-        if (self.config.n_pursuers, self.config.n_evaders) != (
-            trained.n_pursuers,
-            trained.n_evaders,
-        ):
+        if self.config.layout != trained.layout:  # any team its observation's slots hold
             raise ValueError(
-                f"{onnx_path} flies {trained.n_pursuers} vs {trained.n_evaders}, not "
-                f"{self.config.n_pursuers} vs {self.config.n_evaders}"
+                f"{onnx_path} reads {trained.pursuer_slots} pursuers and "
+                f"{trained.evader_slots} evaders (up to {trained.pursuer_slots} vs "
+                f"{trained.evader_slots} in its slots), not a scenario whose observation "
+                f"holds {self.config.pursuer_slots} vs {self.config.evader_slots}"
             )
         self.name = Path(onnx_path).stem
         self.manifest = data

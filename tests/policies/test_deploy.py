@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from hola_ray.commands.export import resolve
+from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.pools import load_pool
 from hola_ray.evaluation.probe import reference_observations
 from hola_ray.policies.deploy import OnnxPolicy, export_onnx, manifest, onnx_actions, write_manifest
@@ -60,9 +61,18 @@ def test_the_manifest_describes_every_observation_entry_and_the_action(tmp_path)
     assert data["control_period_s"] == policy.config.dt
     assert data["onnx"]["sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
     assert data["scenario"]["n_evaders"] == 2
+    # the teams it plays: any its slots hold; the ones it was trained with
+    team = data["team"]
+    assert (team["pursuers"], team["evaders"], team["trained_pursuers"]) == ([1, 3], [1, 2], [3, 3])
+    assert (team["trained_evaders"], team["arena"], team["team_changes"]) == (2, "paper", 0)
     # OnnxPolicy reads it back and refuses a file changed after the export
     obs = played(policy, 2)
     np.testing.assert_allclose(OnnxPolicy(path).act(obs), policy.act(obs), atol=1e-5, rtol=0)
+    # it flies a team of 2 in its 3 slots, and refuses a scenario of other slots
+    pair = PursuitConfig(n_pursuers=2, obs_pursuers=3)
+    assert OnnxPolicy(path, pair).config.n_pursuers == 2
+    with pytest.raises(ValueError, match="reads 3 pursuers and 2 evaders"):
+        OnnxPolicy(path, PursuitConfig(n_pursuers=4))
     path.write_bytes(path.read_bytes() + b"\0")
     with pytest.raises(ValueError, match="sha256"):
         OnnxPolicy(path)
