@@ -415,8 +415,8 @@ def _share(b, s, reward, disabled):
 
 @njit(cache=True)
 def _change_team(b, p, s):
-    """The team's changes due at this step: a teammate in play, not crashed and not in a
-    fixed seat leaves (while more than `min_team` fly), or a waiting one joins at
+    """The team's changes due at the end of this step: a teammate in play, not crashed and
+    not in a fixed seat leaves (while more than `min_team` fly), or a waiting one joins at
     the pursuers' spawn, heading +y; a coin from the episode's stream decides where both
     can happen."""
     ip = p.ip
@@ -494,8 +494,6 @@ def step_episode(b, actions, placed, p, s, out):
     if done[b]:
         return
     t[b] += 1
-    if ip[I_TEAM_CHANGES] > 0:
-        _change_team(b, p, s)
 
     # distances before the move, for the approach term
     for i in range(n_p):
@@ -532,6 +530,8 @@ def step_episode(b, actions, placed, p, s, out):
     elif t[b] >= ip[I_HORIZON]:
         truncated[b] = True
         done[b] = True
+    if ip[I_TEAM_CHANGES] > 0 and not done[b]:  # after the step's rewards: a joiner acts next
+        _change_team(b, p, s)
 
     observe(b, p, s, obs)
 

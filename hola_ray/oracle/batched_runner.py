@@ -151,6 +151,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             stub = SimpleNamespace(id_=eid)
             modules = [mapping(agent, stub) for agent in self.agents]
             self._episodes[b] = _Episode(eid, int(seed), modules, len(self.agents))
+            self._episodes[b].live = self.core.pursuer_active[b].copy()  # a short team
             for i, mid in enumerate(modules):
                 if mid not in self._module_ids:
                     self._module_ids.append(mid)
@@ -207,7 +208,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             result = self.core.step(np.clip(to_env, low, high))
             buf.next_obs[s] = result.obs
             buf.rewards[s] = result.reward
-            buf.disabled[s] = result.disabled
+            # an agent's own episode ends when it crashes or its pursuer leaves (lands)
+            buf.disabled[s] = result.disabled | (live & ~self.core.pursuer_present)
             buf.truncated[s] = result.truncated
             ended = result.terminated | result.truncated
             for b in np.flatnonzero(ended):
@@ -333,7 +335,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             id_=e.id_,
             observation_space={a: self._obs_space for a in self.agents},
             action_space={a: self._act_space for a in self.agents},
-            agent_module_ids={a: e.modules[i] for i, a in enumerate(self.agents) if e.live[i]},
+            agent_module_ids={
+                a: e.modules[i] for i, a in enumerate(self.agents) if live[:, i].any()
+            },
             agent_to_module_mapping_fn=self.config.policy_mapping_fn,
             len_lookback_buffer=0,
         )
@@ -345,14 +349,15 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         # the learner bootstraps V(s_T) there. (RLlib's own runner marks every agent of an
         # episode whose agents are all done terminated, the horizon's too.)
         for i, agent in enumerate(self.agents):
-            if not e.live[i]:
+            acted = np.flatnonzero(live[:, i])
+            if not acted.size:
                 continue
-            k = int(live[:, i].sum())  # steps the agent acted in this chunk
+            # the rows it acted: from its chunk's start or from when it joined, one run
+            first, k = int(acted[0]), int(acted.size)
+            rows_i = slice(e.row + first, e.row + first + k)
             t0 = int(e.agent_t_started[i])
-            disabled = bool(k and buf.disabled[e.row + k - 1, b, i])
-            obs = np.concatenate(
-                [buf.obs[e.row, b, i][None], buf.next_obs[e.row : e.row + k, b, i]]
-            )
+            disabled = bool(buf.disabled[e.row + first + k - 1, b, i])
+            obs = np.concatenate([buf.obs[e.row + first, b, i][None], buf.next_obs[rows_i, b, i]])
             sa = SingleAgentEpisode(
                 id_=f"{e.id_}/{agent}",
                 agent_id=agent,
@@ -361,22 +366,22 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 observations=obs.copy(),
                 observation_space=self._obs_space,
                 infos=[{} for _ in range(k + 1)],
-                actions=buf.actions[e.row : e.row + k, b, i].copy(),
+                actions=buf.actions[rows_i, b, i].copy(),
                 action_space=self._act_space,
-                rewards=buf.rewards[e.row : e.row + k, b, i].copy(),
+                rewards=buf.rewards[rows_i, b, i].copy(),
                 extra_model_outputs={
-                    Columns.ACTION_DIST_INPUTS: buf.dist_inputs[e.row : e.row + k, b, i].copy(),
-                    Columns.ACTION_LOGP: buf.logp[e.row : e.row + k, b, i].copy(),
+                    Columns.ACTION_DIST_INPUTS: buf.dist_inputs[rows_i, b, i].copy(),
+                    Columns.ACTION_LOGP: buf.logp[rows_i, b, i].copy(),
                     WEIGHTS_SEQ_NO: np.full(k, self._weights_seq_no, dtype=np.int64),
                 },
                 terminated=disabled or (done and (horizon_ends or not truncated)),
-                truncated=truncated and k == n and (horizon_ends or not disabled),
+                truncated=truncated and first + k == n and (horizon_ends or not disabled),
                 t_started=t0,
                 len_lookback_buffer=0,
             )
             episode.agent_episodes[agent] = sa
             episode.agent_t_started[agent] = t0
-            mapping = list(range(t0, t0 + k + 1)) + [SKIP] * (n - k)
+            mapping = [SKIP] * first + list(range(t0, t0 + k + 1)) + [SKIP] * (n - first - k)
             episode.env_t_to_agent_t[agent] = InfiniteLookbackBuffer(data=mapping, lookback=0)
         episode.is_terminated = done and (horizon_ends or not truncated)
         episode.is_truncated = truncated

@@ -23,7 +23,8 @@ def slot_of_agent(agent_id: str) -> int:
 
 class PartnerMapping:
     """A stateful `policy_mapping_fn`: per episode, the learner takes a uniformly random slot
-    (when there is a learner) and every other slot a module drawn from φ; or, with
+    (when there is a learner; `learner_seat` fixes it, as a team that changes within the
+    episode does) and every other slot a module drawn from φ; or, with
     `whole_team`, one module drawn from φ plays every slot of the episode (MEP's members,
     each in self-play).
 
@@ -39,11 +40,14 @@ class PartnerMapping:
         learner: bool,
         salt: int = 0,
         whole_team: bool = False,
+        learner_seat: int | None = None,
     ):
         if learner and whole_team:
             raise ValueError("a whole team of one module leaves no seat for the learner")
         self.n_pursuers = n_pursuers
         self.learner = learner
+        self.learner_seat = learner_seat
+        """the learner's slot in every episode; None: a uniformly random slot"""
         self.whole_team = whole_team
         self.salt = salt
         self.set_phi(phi)
@@ -74,7 +78,8 @@ class PartnerMapping:
             picks = np.repeat(picks, self.n_pursuers)
         out = [self.modules[k] for k in picks]
         if self.learner:
-            out[int(rng.integers(self.n_pursuers))] = LEARNER
+            seat = int(rng.integers(self.n_pursuers))  # drawn either way: the same stream
+            out[seat if self.learner_seat is None else self.learner_seat] = LEARNER
         return out
 
     def __call__(self, agent_id: str, episode, **kwargs) -> str:

@@ -122,6 +122,8 @@ class Oracle:
                 {m: 1.0 for m in self.members},
                 learner=not self.mep,
                 whole_team=seating.mep_self_play,
+                # a team that changes keeps seat 0 in play throughout: the learner's
+                learner_seat=0 if env.team.open else None,
             )
         self.trained = self.members if self.mep else [LEARNER]
         self.counts_samples = config.budget == "learner_samples" and not self.mep
@@ -180,7 +182,13 @@ class Oracle:
             extra |= {"mep_alpha": self.seating.mep_alpha, "mep_modules": self.members}
         return (
             PPOConfig(algo_class=OverlappedPPO)
-            .environment(ENV_NAME, env_config={"scenario": env})
+            .environment(
+                ENV_NAME,
+                env_config={"scenario": env},
+                # RLlib's pre-check takes a reset's agents for all the env will ever have; a
+                # team that starts short has more (they join later): checked by the tests
+                disable_env_checking=env.team.open,
+            )
             .env_runners(
                 env_runner_cls=BatchedEnvRunner if o.sampler == "batched" else None,
                 num_env_runners=o.env_runners,

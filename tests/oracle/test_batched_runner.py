@@ -111,24 +111,27 @@ def joined(chunks):
     }
 
 
-def replay(seed: int, actions: dict[str, np.ndarray], dist_inputs, logp, modules):
+def replay(seed: int, actions: dict[str, np.ndarray], dist_inputs, logp, modules, env=None):
     """The episode of `seed` played in `PursuitEnv` with the recorded actions (RLlib's
     [−1, 1], unsquashed onto the Box as RLlib does), recorded the way RLlib's
-    `MultiAgentEnvRunner` records it; and the env's end-of-episode infos."""
-    env = PursuitEnv(CONFIG.env)
+    `MultiAgentEnvRunner` records it; and the env's end-of-episode infos. Each agent's
+    actions are indexed by its own steps (a teammate that joins late starts at 0)."""
+    env = PursuitEnv(env or CONFIG.env)
     obs, infos = env.reset(seed=seed)
     episode = MultiAgentEpisode(agent_module_ids=modules)
     episode.add_env_reset(observations=obs, infos=infos)
-    step = 0
+    own = defaultdict(int)
     while env.agents:
         live = list(env.agents)
-        act = {a: actions[a][step] for a in live}
+        act = {a: actions[a][own[a]] for a in live}
         to_env = {a: np.clip((act[a] + 1.0) / 2.0, 0.0, 1.0) for a in live}
-        obs, rewards, terms, truncs, infos = env.step(to_env)
         extra = {
-            a: {"action_dist_inputs": dist_inputs[a][step], "action_logp": logp[a][step]}
+            a: {"action_dist_inputs": dist_inputs[a][own[a]], "action_logp": logp[a][own[a]]}
             for a in live
         }
+        for a in live:
+            own[a] += 1
+        obs, rewards, terms, truncs, infos = env.step(to_env)
         # as RLlib's ParallelPettingZooEnv wrapper reports the episode's end
         terms["__all__"] = all(terms.values())
         truncs["__all__"] = all(truncs.values())
@@ -141,7 +144,6 @@ def replay(seed: int, actions: dict[str, np.ndarray], dist_inputs, logp, modules
             truncateds=truncs,
             extra_model_outputs=extra,
         )
-        step += 1
         end_infos = infos
     episode = episode.to_numpy()
     if episode.is_truncated:  # the one deliberate difference: the horizon truncates
@@ -152,8 +154,10 @@ def replay(seed: int, actions: dict[str, np.ndarray], dist_inputs, logp, modules
     return episode, end_infos
 
 
-def test_episodes_replay_in_pursuit_env_and_match_rllibs_bookkeeping(oracle):
-    oracle.set_phi({member_module(0): 1.0, member_module(2): 2.0})
+def replayed_alike(oracle, env) -> set:
+    """Sample 8 calls of 150 env steps on every remote runner, replay each finished episode
+    in `PursuitEnv` with its recorded actions, and hold the runner's chunks to RLlib's own
+    bookkeeping of the replay; the outcomes seen (success, collision, truncated)."""
     # 6 envs × 25 steps per call with a 50-step horizon: most episodes span 2–3 chunks
     runs = oracle.algo.env_runner_group.foreach_env_runner(
         lambda r: sample_chunks(r, calls=8, steps=150), local_env_runner=False
@@ -177,6 +181,7 @@ def test_episodes_replay_in_pursuit_env_and_match_rllibs_bookkeeping(oracle):
             {a: d["action_dist_inputs"] for a, d in data.items()},
             {a: d["action_logp"] for a, d in data.items()},
             modules,
+            env,
         )
         assert sum(c["len"] for c in chunks) == len(ref)
         assert chunks[-1]["terminated"] == ref.is_terminated
@@ -200,8 +205,39 @@ def test_episodes_replay_in_pursuit_env_and_match_rllibs_bookkeeping(oracle):
                 np.testing.assert_array_equal(
                     sa.get_extra_model_outputs(col, slice(0, n)), mine[col]
                 )
+    return outcomes
+
+
+def test_episodes_replay_in_pursuit_env_and_match_rllibs_bookkeeping(oracle):
+    oracle.set_phi({member_module(0): 1.0, member_module(2): 2.0})
     # the comparison covered episodes that ended in different ways
-    assert len(outcomes) >= 2
+    assert len(replayed_alike(oracle, CONFIG.env)) >= 2
+
+
+OPEN = RunConfig.from_dict(
+    CONFIG.to_dict()
+    | {
+        "env": CONFIG.env.to_dict()
+        | {"team": {"present": [1, 3], "changes": 3, "window": [0.05, 0.8]}}
+    }
+)
+
+
+def test_teammates_who_join_and_leave_replay_as_rllib_records_them(ray_session):
+    """A team of 1–3 of 3 that changes three times an episode: a teammate that joins starts
+    its own agent episode at its first observation, one that leaves ends its own, and the
+    learner keeps seat 0; every chunk equals RLlib's bookkeeping of the replay."""
+    o = OPEN.strategy.make_oracle(OPEN)
+    try:
+        o.set_phi({member_module(0): 1.0, member_module(1): 1.0})
+        assert len(replayed_alike(o, OPEN.env)) >= 1
+        seats = o.algo.env_runner_group.foreach_env_runner(
+            lambda r: [e.modules.index(LEARNER) for e in r._episodes if LEARNER in e.modules],
+            local_env_runner=False,
+        )
+        assert {s for run in seats for s in run} == {0}
+    finally:
+        o.stop()
 
 
 def test_a_recreated_runner_samples_partners_from_the_pushed_phi(oracle):
