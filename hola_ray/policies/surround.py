@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit
 
 from hola_ray.config.scenario import PursuitConfig
+from hola_ray.env.geometry import wrap
 from hola_ray.policies import _ego
 from hola_ray.policies.base import Policy
 
@@ -84,11 +85,6 @@ class Surround(Policy):
 
 
 @njit(cache=True)
-def _wrap(a):
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-@njit(cache=True)
 def _target(obs, n, n_e, k_mates, n_mates, team, scale, far):
     """The evader row n takes: the nearest live one that fewer than its share of teammates
     are nearer to (the nearest live one if every evader is taken); −1 when none is live.
@@ -141,7 +137,7 @@ def _surround(
                 tx, ty, _ = _ego.point(obs, n, k, scale)
                 if math.hypot(tx - ex, ty - ey) > d + close:
                     continue  # a teammate far behind: not near this evader
-                gap = _wrap(own - math.atan2(ty - ey, tx - ex))
+                gap = wrap(own - math.atan2(ty - ey, tx - ex))
                 if abs(gap) < spread:
                     push += math.copysign((spread - abs(gap)) / spread, gap)
             w = flank * min(max((d - close) / close, 0.0), 1.0) * push
