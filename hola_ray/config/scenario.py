@@ -273,6 +273,11 @@ class PursuitConfig:
     """boxes (bars and squares) as (centre_x, centre_y, width, height); unset: the arena's"""
     discs: tuple[Disc, ...] | None = None
     """round obstacles as (centre_x, centre_y, radius); unset: the arena's"""
+    arenas: tuple[str, ...] = ()
+    """named arenas (`ARENAS`) each episode draws its layout from, uniformly, from its own
+    stream (contract §6.1); `arena` is then one of them, the first unless given, and names
+    the layout of what draws no episode (a drawing's default). Empty: every episode in
+    `arena`"""
     n_pursuers: int = 3
     """pursuers per episode (the learner and its teammates)"""
     n_evaders: int = 2
@@ -441,6 +446,15 @@ class PursuitConfig:
         given without a name are the named arena they equal (an older manifest's paper bars
         are `paper`), else `custom`."""
         name = self.arena
+        mix = tuple(self.arenas)
+        object.__setattr__(self, "arenas", mix)
+        for i, drawn in enumerate(mix):
+            require(drawn in ARENAS, f"arenas[{i}]", f"one of {', '.join(ARENAS)}", drawn)
+        require(len(set(mix)) == len(mix), "arenas", "arenas named once each", list(mix))
+        if name is None and mix:
+            name = mix[0]
+        if mix:
+            require(name in mix, "arena", f"one of arenas {list(mix)}", name)
         if name is None and self.obstacles is None and self.discs is None:
             name = "paper"
         elif name is None:
@@ -547,7 +561,15 @@ class PursuitConfig:
         """This scenario in the named arena (`ARENAS`), its obstacles with it."""
         if name not in ARENAS:
             raise ConfigError(f"arena must be one of {', '.join(ARENAS)}, got {name!r}")
-        return dataclasses.replace(self, arena=name, obstacles=None, discs=None)
+        return dataclasses.replace(self, arena=name, obstacles=None, discs=None, arenas=())
+
+    @property
+    def layouts(self) -> tuple[tuple[tuple[Rect, ...], tuple[Disc, ...]], ...]:
+        """The (boxes, discs) an episode may be played in: one per arena of `arenas`, in
+        its order, else the scenario's own."""
+        if self.arenas:
+            return tuple(ARENAS[name] for name in self.arenas)
+        return ((tuple(self.obstacles), tuple(self.discs)),)
 
     @property
     def obs_dim(self) -> int:
@@ -599,6 +621,7 @@ class PursuitConfig:
         out = dataclasses.asdict(self)
         out["obstacles"] = [list(rect) for rect in self.obstacles]
         out["discs"] = [list(disc) for disc in self.discs]
+        out["arenas"] = list(self.arenas)
         out["team"]["window"] = list(self.team.window)
         if isinstance(self.team.present, tuple):
             out["team"]["present"] = list(self.team.present)

@@ -66,7 +66,13 @@ I_TEAM_CHANGES = 8
 I_TEAM_MIN = 9
 I_TEAM_FIXED = 10
 I_TEAM_PRESENT_HIGH = 11
-N_INT_PARAMS = 12
+I_ARENAS = 12
+N_INT_PARAMS = 13
+
+_NOWHERE = -1.0e6
+"""Where a layout with fewer shapes than another keeps its spare ones: a point box or disc
+so far outside the arena that no wall is farther, so nothing sees, hits or is repelled by
+it."""
 
 
 class Params(NamedTuple):
@@ -74,9 +80,9 @@ class Params(NamedTuple):
 
     fp: np.ndarray  # [N_FLOAT_PARAMS] float64, indexed by F_*
     ip: np.ndarray  # [N_INT_PARAMS] int64, indexed by I_*
-    rects: np.ndarray  # [K, 4] boxes as (x_min, y_min, x_max, y_max)
+    rects: np.ndarray  # [A, K, 4] each layout's boxes as (x_min, y_min, x_max, y_max)
     spawn: np.ndarray  # [2, 4] pursuer then evader spawn region (x0, x1, y0, y1)
-    discs: np.ndarray  # [K, 3] discs as (centre_x, centre_y, radius)
+    discs: np.ndarray  # [A, K, 3] each layout's discs as (centre_x, centre_y, radius)
 
 
 class Arena(NamedTuple):
@@ -103,6 +109,7 @@ class Arena(NamedTuple):
     ppresent: np.ndarray  # [B, n_p] bool, in play (not landed, not waiting to join)
     pwaiting: np.ndarray  # [B, n_p] bool, not yet in play: may join
     change_t: np.ndarray  # [B, K] int64, the steps of the team's changes (K ≥ 1)
+    layout: np.ndarray  # [B] int64, the episode's layout: an index of Params.rects
 
 
 class StepOut(NamedTuple):
@@ -174,16 +181,27 @@ def pack_params(config: PursuitConfig) -> Params:
             config.team.min_team,
             config.team.fixed,
             (config.team.present_range or (config.n_pursuers,) * 2)[1],
+            len(config.arenas),
         ],
         dtype=np.int64,
     )
-    rects = np.array(
-        [(cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2) for cx, cy, w, h in config.obstacles],
-        dtype=np.float64,
-    ).reshape(-1, 4)
+    layouts = config.layouts
+    rects = np.full((len(layouts), max(len(b) for b, _ in layouts), 4), _NOWHERE)
+    discs = np.full((len(layouts), max(len(d) for _, d in layouts), 3), _NOWHERE)
+    discs[..., 2] = 0.0
+    for a, (boxes, round_ones) in enumerate(layouts):
+        for k, (cx, cy, w, h) in enumerate(boxes):
+            rects[a, k] = (cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2)
+        for k, disc in enumerate(round_ones):
+            discs[a, k] = disc
     spawn = np.array([config.pursuer_spawn, config.evader_spawn], dtype=np.float64)
-    discs = np.array(config.discs, dtype=np.float64).reshape(-1, 3)
     return Params(fp, ip, rects, spawn, discs)
+
+
+@njit(cache=True, inline="always")
+def statics(b, p, s):
+    """Episode b's boxes and discs: its layout's rows of `Params.rects` and `.discs`."""
+    return p.rects[s.layout[b]], p.discs[s.layout[b]]
 
 
 # ---- geometry -------------------------------------------------------------------------

@@ -31,6 +31,7 @@ from hola_ray.env._arena import (
     I_HOLD_MIN,
     nearest_on_disc,
     nearest_static,
+    statics,
 )
 from hola_ray.env.geometry import norm, wrap
 
@@ -212,7 +213,8 @@ def evader_heading(b, e, p, s):
     oppose; slip between two close pursuers when the gap is reachable first. The heading
     change is bounded by the evader's max turn.
     """
-    fp, rects, discs = p.fp, p.rects, p.discs
+    fp = p.fp
+    rects, discs = statics(b, p, s)
     ex = s.epos[b, e, 0]
     ey = s.epos[b, e, 1]
     h = s.ehead[b, e]

@@ -44,6 +44,7 @@ from hola_ray.env._arena import (
     F_V_E,
     F_V_P,
     F_WIDTH,
+    I_ARENAS,
     I_HEADINGS,
     I_HORIZON,
     I_OBS_EVADERS,
@@ -59,6 +60,7 @@ from hola_ray.env._arena import (
     StepOut,
     nearest_static,
     pack_params,
+    statics,
 )
 from hola_ray.env._evader import evader_heading
 from hola_ray.env.geometry import norm, wrap
@@ -91,8 +93,10 @@ def reset_episode(b, p, s):
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
      t, done, collided, captures, ep_return, rng, pvel, pcmd, ppresent, pwaiting,
-     change_t) = s
+     change_t, layout) = s
     # fmt: on
+    if ip[I_ARENAS] > 1:  # a layout per episode, drawn first (contract §6.1)
+        layout[b] = _rng.integer(rng, b, 0, ip[I_ARENAS] - 1)
     _place(rng, b, ppos[b], ppos.shape[1], spawn[0], fp[F_SPAWN_SEP])
     _place(rng, b, epos[b], epos.shape[1], spawn[1], fp[F_SPAWN_SEP])
     for i in range(ppos.shape[1]):
@@ -169,12 +173,13 @@ def reset_masked(mask, p, s, obs):
 @njit(cache=True)
 def observe(b, p, s, obs):
     """Write every pursuer's egocentric observation of episode b into obs[b] (contract §1)."""
-    fp, ip, rects, spawn, discs = p
+    fp, ip, _, spawn, _ = p
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
      t, done, collided, captures, ep_return, rng, pvel, pcmd, ppresent, pwaiting,
-     change_t) = s
+     change_t, layout) = s
     # fmt: on
+    rects, discs = statics(b, p, s)
     n_p = ppos.shape[1]
     n_e = epos.shape[1]
     scale = fp[F_OBS_SCALE]
@@ -307,7 +312,8 @@ def _respond(b, i, h, beta, delayed, fp, s):
 def _move_evaders(b, p, s, new_heading):
     """Each live evader takes its decided heading; a move that would end closer than
     min_clearance to a wall or bar is not made."""
-    fp, rects, discs = p.fp, p.rects, p.discs
+    fp = p.fp
+    rects, discs = statics(b, p, s)
     step_e = fp[F_V_E] * fp[F_DT]
     for e in range(s.epos.shape[1]):
         if s.ealive[b, e]:
@@ -358,7 +364,8 @@ def _collisions(b, p, s, reward, disabled):
     """Collisions: walls, bars and disabled pursuers (safe radius); active pairs (κ); and
     the proximity penalties (obstacles, disabled pursuers; active teammates). A pursuer
     that collided is disabled."""
-    fp, rects, discs, ppos, pactive = p.fp, p.rects, p.discs, s.ppos, s.pactive
+    fp, ppos, pactive = p.fp, s.ppos, s.pactive
+    rects, discs = statics(b, p, s)
     n_p = ppos.shape[1]
     any_collision = False
     for i in range(n_p):

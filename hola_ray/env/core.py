@@ -63,6 +63,7 @@ class BatchedPursuit:
             ppresent=np.zeros((B, n_p), dtype=bool),
             pwaiting=np.zeros((B, n_p), dtype=bool),
             change_t=np.zeros((B, max(config.team.changes, 1)), dtype=np.int64),
+            layout=np.zeros(B, dtype=np.int64),
         )
         self._out = _kernels.StepOut(
             obs=np.zeros((B, n_p, self.layout.dim), dtype=np.float32),
@@ -90,6 +91,16 @@ class BatchedPursuit:
         self.captures = arena.captures  # [B] evaders captured in the episode
         self.episode_return = arena.ep_return  # [B, n_p] each pursuer's summed reward
         self.obs = self._out.obs  # [B, n_p, obs_dim] float32
+        self.layout_index = arena.layout  # [B] the episode's arena: an index of `arenas`
+
+    def arena_of(self, b: int) -> str:
+        """The arena episode b is played in (drawn at its reset where `env.arenas` is set)."""
+        mix = self.config.arenas
+        return mix[int(self.layout_index[b])] if mix else self.config.arena
+
+    def config_of(self, b: int) -> PursuitConfig:
+        """The scenario as episode b plays it: in its own arena, drawing no other."""
+        return self.config.in_arena(self.arena_of(b)) if self.config.arenas else self.config
 
     # ---- reset -----------------------------------------------------------------------
     def reset(

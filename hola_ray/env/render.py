@@ -61,9 +61,12 @@ def _canvas_rgb(fig: Figure) -> np.ndarray:
 
 
 def render_frame(config: PursuitConfig, core: BatchedPursuit, b: int) -> np.ndarray:
-    """An RGB image [H, W, 3] of episode b's current state."""
-    fig, ax = _figure(config, 4.0)
+    """An RGB image [H, W, 3] of episode b's current state, in the arena it is played in;
+    a pursuer out of play (landed, or yet to join) is not drawn."""
+    fig, ax = _figure(core.config_of(b), 4.0)
     for i in range(config.n_pursuers):
+        if not core.pursuer_present[b, i]:
+            continue
         x, y = core.pursuer_pos[b, i]
         marker = "o" if core.pursuer_active[b, i] else "X"
         ax.plot(x, y, marker, color=_colour(PURSUER_COLOURS, i), ms=8)

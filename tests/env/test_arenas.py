@@ -14,6 +14,7 @@ from test_pettingzoo import _drive  # tests/env is on the path (pytest prepends 
 
 from hola_ray.config.scenario import ARENAS, PAPER_BARS
 from hola_ray.env import BatchedPursuit, ConfigError, PursuitConfig
+from hola_ray.env.core import INITIAL_STATE_KEYS
 from hola_ray.env._arena import nearest_on_disc, nearest_static, pack_params
 from hola_ray.env.pettingzoo_env import PursuitEnv
 
@@ -62,7 +63,7 @@ def test_the_nearest_point_of_a_disc_by_hand():
     config = PursuitConfig(arena="blocks")
     p = pack_params(config)
     # beside the disc at (1.8, 2.5), r 0.35: 0.15 m off its rim, nearer than any box or wall
-    qx, qy, d = nearest_static(1.8 + 0.5, 2.5, p.rects, p.discs, 3.6, 5.0)
+    qx, qy, d = nearest_static(1.8 + 0.5, 2.5, p.rects[0], p.discs[0], 3.6, 5.0)
     assert (qx, qy, d) == pytest.approx((2.15, 2.5, 0.15))
 
 
@@ -311,3 +312,69 @@ def test_the_learner_sits_in_the_seat_that_stays_when_the_team_changes():
     played = play(learner, members, config, 40, [0])
     assert played["success"].shape == (40,)
     assert 0.0 <= played["learner_crash"].mean() <= played["collision"].mean() <= 1.0
+
+
+
+def test_an_arena_drawn_per_episode_plays_as_that_arena_does():
+    """`env.arenas`: each episode draws its layout from its own stream (all four among 64),
+    then plays exactly as a scenario fixed in that arena plays from the same state and
+    stream: observations, rewards, moves, step for step, to the end. Padding a layout with
+    spare shapes changes nothing. A mix of one arena draws nothing: the paper's episodes."""
+    mixed = PursuitConfig(arenas=("open", "bar", "blocks", "paper"), horizon=300)
+    assert mixed.arena == "open" and PursuitConfig.from_dict(mixed.to_dict()) == mixed
+    batch = BatchedPursuit(mixed, 64)
+    batch.reset(seeds=np.arange(64))
+    assert set(batch.layout_index.tolist()) == {0, 1, 2, 3}
+    picks = [int(np.flatnonzero(batch.layout_index == a)[0]) for a in range(4)]
+    twins = []
+    for b in picks:
+        twin = BatchedPursuit(batch.config_of(b), 1)
+        assert twin.config.arena == batch.arena_of(b) == mixed.arenas[batch.layout_index[b]]
+        assert not twin.config.arenas
+        state = {key: getattr(batch, key)[b].copy() for key in INITIAL_STATE_KEYS}
+        twin.reset(initial_state={0: state})
+        twin._arena.rng[0] = batch._arena.rng[b]  # the stream as the draw left it
+        np.testing.assert_array_equal(twin.obs[0], batch.obs[b])
+        twins.append(twin)
+    rng = np.random.default_rng(5)
+    collided = 0
+    for _ in range(mixed.horizon):
+        actions = rng.random((64, 3))
+        running = ~batch.done.copy()
+        result = batch.step(actions)
+        for b, twin in zip(picks, twins, strict=True):
+            if running[b]:
+                out = twin.step(actions[b : b + 1])
+                np.testing.assert_array_equal(out.obs[0], result.obs[b])
+                np.testing.assert_array_equal(out.reward[0], result.reward[b])
+                np.testing.assert_array_equal(twin.evader_pos[0], batch.evader_pos[b])
+        if batch.done[picks].all():
+            break
+    for b, twin in zip(picks, twins, strict=True):
+        assert twin.episode_metrics(0) == batch.episode_metrics(b)
+        collided += twin.collided[0]
+    assert collided > 0  # random headings crash: the obstacles were there to hit
+    one = BatchedPursuit(PursuitConfig(arenas=("paper",)), 8)
+    paper = BatchedPursuit(PursuitConfig(), 8)
+    np.testing.assert_array_equal(one.reset(seeds=np.arange(8)), paper.reset(seeds=np.arange(8)))
+
+
+def test_an_arena_mix_names_known_arenas_once_each():
+    with pytest.raises(ConfigError, match=r"arenas\[1\] must be one of"):
+        PursuitConfig(arenas=("open", "custom"))
+    with pytest.raises(ConfigError, match="named once each"):
+        PursuitConfig(arenas=("open", "open"))
+    with pytest.raises(ConfigError, match="arena must be one of arenas"):
+        PursuitConfig(arena="paper", arenas=("open", "bar"))
+    assert PursuitConfig(arena="bar", arenas=("open", "bar")).obstacles == ARENAS["bar"][0]
+    assert PursuitConfig(arenas=("bar", "open")).in_arena("open").arenas == ()
+
+
+@pytest.mark.parametrize("n_p", [2, 5])
+def test_pettingzoo_api_and_the_core_with_arenas_drawn_per_episode(n_p):
+    config = PursuitConfig(
+        arenas=tuple(ARENAS), n_pursuers=n_p, n_evaders=2, horizon=150, obs_pursuers=5
+    )
+    parallel_api_test(PursuitEnv(config), num_cycles=150)
+    rng = np.random.default_rng(n_p)
+    _drive(4, [7, 8, 9, 10], lambda t, obs: rng.random((4, n_p)), config)
