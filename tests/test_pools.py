@@ -1,5 +1,6 @@
 """Pools: a member file that changed since the build is refused, an unknown pool is one
-clear error, and a member trained for two evaders plays one as if the other were caught."""
+clear error, and a member trained for two evaders plays one as if the other were caught
+(tests/policies/test_adapter.py: the adapter for other teams)."""
 
 from __future__ import annotations
 
@@ -17,10 +18,10 @@ from hola_ray.evaluation.pools import (
 from hola_ray.evaluation.pools import (
     MANIFEST,
     PoolError,
-    ScenarioAdapter,
     load_pool,
 )
 from hola_ray.homes import sha256
+from hola_ray.policies.adapter import ScenarioAdapter
 from hola_ray.policies.learned import MLPPolicy, random_export
 
 TWO = PursuitConfig(n_evaders=2)
@@ -85,8 +86,8 @@ def test_a_two_evader_member_plays_one_evader_as_if_the_other_were_caught(pool):
     # the same observation in the two-evader layout with evader 2 reading (2, 0, 0)
     obs2 = np.concatenate([obs1[:, :3], np.tile([2.0, 0.0, 0.0], (32, 1)), obs1[:, 3:]], axis=1)
     np.testing.assert_array_equal(member.act(obs1), reference.act(obs2.astype(np.float32)))
-    with pytest.raises(PoolError, match="cannot play 3"):
-        ScenarioAdapter(dataclasses.replace(TWO, n_evaders=3), reference, trained_evaders=2)
+    five = load_pool(pool, dataclasses.replace(TWO, n_pursuers=5, n_evaders=3))["ppo-x"]
+    assert isinstance(five, ScenarioAdapter) and five.policy.config.n_pursuers == 3
 
 
 @pytest.mark.parametrize("name", ["hot", "het", "surround"])
@@ -125,8 +126,8 @@ def test_d3qn_g_trained_against_one_evader_plays_two_as_it_is():
         assert isinstance(members[mid], D3QNG) and members[mid].config.n_evaders == 2
         result = rollout(TWO, [members[mid]] * 3, episodes=8)
         assert result.episodes == 8
-    with pytest.raises(PoolError, match="PPO \\(1\\) was trained with 2 evader"):
-        load_pool("hot", dataclasses.replace(TWO, n_evaders=3))
+    three = dataclasses.replace(TWO, n_evaders=3)  # PPO (1), trained for 2, sees the nearest 2
+    assert isinstance(load_pool("hot", three)["ppo-1"], ScenarioAdapter)
 
 
 def test_no_evaluation_pool_member_can_validate_or_train(tmp_path):

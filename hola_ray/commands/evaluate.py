@@ -15,7 +15,8 @@ The scenario is the one the learners trained in (`policies.registry.trained_scen
 the paper's evaluation is 3 vs 2 in Table I's arena; every learner given must share it)
 with the arena's default rewards (the team return that the score compares; a run's own
 reward shaping is not used).
-Pool members trained for more evaders play fewer through `ScenarioAdapter`.
+Pool members trained for another team (more or fewer evaders or teammates) play it
+through `hola_ray.policies.adapter.ScenarioAdapter`.
 
 A learner is a run directory (its final `learner.pt`), a generation folder or a policy
 file: a learned pursuer's export or a D3QN-G export (which reads the first evader and

@@ -239,6 +239,11 @@ class TeamChangeConfig:
             require(ok, "team.present", "an integer >= 1 or a pair [low, high] of them", value)
             if isinstance(value, list | tuple):
                 object.__setattr__(self, "present", pair)
+        ok = len(self.window) == 2 and all(_is_number(v) for v in self.window)
+        require(ok, "team.window", "two numbers (start, end)", self.window)
+        object.__setattr__(self, "window", tuple(float(v) for v in self.window))
+        lo, hi = self.window
+        require(0.0 <= lo < hi <= 1.0, "team.window", "0 <= start < end <= 1", self.window)
 
     @property
     def present_range(self) -> tuple[int, int] | None:
@@ -246,11 +251,15 @@ class TeamChangeConfig:
         if self.present is None:
             return None
         return self.present if isinstance(self.present, tuple) else (self.present, self.present)
-        ok = len(self.window) == 2 and all(_is_number(v) for v in self.window)
-        require(ok, "team.window", "two numbers (start, end)", self.window)
-        object.__setattr__(self, "window", tuple(float(v) for v in self.window))
-        lo, hi = self.window
-        require(0.0 <= lo < hi <= 1.0, "team.window", "0 <= start < end <= 1", self.window)
+
+    def sizes(self, n_pursuers: int) -> tuple[int, ...]:
+        """The team sizes of two or more an episode of `n_pursuers` seats is flown in: all
+        of them for the paper's team; from the smallest start (or `min_team`, where
+        teammates leave) to the largest start (or every seat, where they join)."""
+        lo, hi = self.present_range or (n_pursuers, n_pursuers)
+        if self.changes > 0:
+            lo, hi = min(lo, self.min_team), n_pursuers
+        return tuple(range(max(lo, 2), max(hi, 2) + 1))
 
     @property
     def open(self) -> bool:

@@ -13,26 +13,24 @@ No pool member is ever used in training: training and selection read the validat
 alone, through `load_validation`, which refuses any evaluation member (a test reads the
 imports of hola_ray/methods, oracle and population).
 
-A learned member trained with more evaders than a scenario has plays it through
-`ScenarioAdapter`: the missing evaders read as captured, (2, 0, 0), exactly what the
-member saw in training once an evader was caught. That is how Table II's one-evader
-episodes are played by members trained for two.
+A learned member trained for another team than a scenario's plays it through
+`hola_ray.policies.adapter.ScenarioAdapter`: with fewer evaders, the missing ones read as
+captured, (2, 0, 0), exactly what the member saw in training once an evader was caught
+(that is how Table II's one-evader episodes are played by members trained for two); with
+more teammates or evaders than it has slots for, it sees the nearest (contract §6.2).
 """
 
 from __future__ import annotations
 
-import copy
-import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from hola_ray import homes
 from hola_ray.config.scenario import PursuitConfig
 from hola_ray.homes import MANIFEST
+from hola_ray.policies.adapter import fitted, trained_scenario
 from hola_ray.policies.base import Policy
 from hola_ray.policies.registry import load_policy, make_policy
 
@@ -120,49 +118,6 @@ class PoolError(RuntimeError):
     """A pool that cannot be used as it is: unknown, unbuilt, or changed since its build."""
 
 
-# ---- playing a member in another scenario --------------------------------------------------
-class ScenarioAdapter(Policy):
-    """A policy trained with `trained_evaders` evaders, playing a scenario with fewer: the
-    observation gets the missing evaders' triples as captured, (2, 0, 0)."""
-
-    def __init__(self, config: PursuitConfig, policy: Policy, trained_evaders: int) -> None:
-        super().__init__(config)
-        if trained_evaders < config.n_evaders:
-            raise PoolError(
-                f"{policy.name} was trained with {trained_evaders} evader(s); it cannot play "
-                f"{config.n_evaders}"
-            )
-        if policy.config.n_pursuers != config.n_pursuers:
-            raise PoolError(
-                f"{policy.name} was trained with {policy.config.n_pursuers} pursuers, "
-                f"this scenario has {config.n_pursuers}"
-            )
-        self.policy = policy
-        self.name = policy.name
-        self.missing = trained_evaders - config.n_evaders
-        captured = np.array([config.unobserved_distance, 0.0, 0.0], np.float32)
-        self._pad = np.tile(captured, self.missing)
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        obs = self._check(obs)
-        if not self.missing:
-            return self.policy.act(obs)
-        k = 3 * self.config.n_evaders
-        pad = np.broadcast_to(self._pad, (obs.shape[0], self._pad.size))
-        return self.policy.act(np.concatenate([obs[:, :k], pad, obs[:, k:]], axis=1))
-
-    def reset(self, mask: np.ndarray | None = None) -> None:
-        self.policy.reset(mask)
-
-    def twin(self) -> Policy:
-        inner = self.policy.twin()
-        if inner is self.policy:
-            return self
-        other = copy.copy(self)
-        other.policy = inner
-        return other
-
-
 # ---- manifests and hashes -------------------------------------------------------------------
 def pool_dir(pool: str | Path) -> Path:
     """`hot`, `het` or a folder holding a manifest → the pool's folder."""
@@ -187,25 +142,19 @@ def load_member(folder: Path, mid: str, entry: dict[str, Any], config: PursuitCo
     if kind == "handwritten":
         return make_policy(mid, config)
     scenario = entry["scenario"]
-    trained = dataclasses.replace(
-        config, n_pursuers=scenario["n_pursuers"], n_evaders=scenario["n_evaders"]
-    )
     if kind not in ("ppo", "d3qn"):
         raise PoolError(f"pool {folder.name}: member {mid} has an unknown kind {kind!r}")
-    if kind == "d3qn" and scenario["n_pursuers"] == config.n_pursuers:
+    evaders = scenario["n_evaders"]
+    if kind == "d3qn":
         # D3QN-G reads the first evader only and plays Greedy once it is caught (contract §3):
         # it plays any number of evaders as it is
-        try:
-            return load_policy(folder / entry["file"], config, name=entry["name"])
-        except ValueError as err:
-            raise PoolError(f"pool {folder.name}: member {mid}: {err}") from err
+        evaders = config.evader_slots
+    trained = trained_scenario(config, scenario["n_pursuers"], evaders)
     try:
         policy = load_policy(folder / entry["file"], trained, name=entry["name"])
     except ValueError as err:
         raise PoolError(f"pool {folder.name}: member {mid}: {err}") from err
-    if trained.n_evaders == config.n_evaders:
-        return policy
-    return ScenarioAdapter(config, policy, trained.n_evaders)
+    return fitted(config, policy)
 
 
 def load_validation(pool: str | Path, config: PursuitConfig) -> dict[str, Policy]:

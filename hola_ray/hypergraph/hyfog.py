@@ -1,4 +1,5 @@
-"""The hypergraphic-form game (paper §IV-A): nodes, l-uniform weighted hyperedges."""
+"""The hypergraphic-form game (paper §IV-A): nodes, weighted hyperedges of l nodes, or, for
+teams of changing size (contract §6.2), of any of several sizes."""
 
 from __future__ import annotations
 
@@ -26,18 +27,29 @@ class Hyperedge:
 
 
 class HyFoG:
-    """G = (V, E, w, l): at most `max_size` nodes; every hyperedge holds exactly l nodes.
+    """G = (V, E, w, l): at most `max_size` nodes; every hyperedge holds exactly l nodes, or
+    one of `sizes` nodes (teams of several sizes; l is then the largest).
 
     Node order is insertion order; it breaks ties everywhere (see `preference_hypergraph`).
     A weight set again for the same node set is merged as a running mean over episodes.
     """
 
-    def __init__(self, l: int = 3, max_size: int = 10) -> None:  # noqa: E741 - the paper's l
+    def __init__(
+        self,
+        l: int = 3,  # noqa: E741 - the paper's l
+        max_size: int = 10,
+        sizes: Iterable[int] | None = None,
+    ) -> None:
         if not isinstance(l, int) or l < 1:
             raise HyFoGError(f"l must be an integer >= 1, got {l!r}")
         if not isinstance(max_size, int) or max_size < l:
             raise HyFoGError(f"max_size must be an integer >= l ({l}), got {max_size!r}")
+        sizes = tuple(sorted(set(sizes))) if sizes is not None else (l,)
+        if not sizes or sizes[-1] != l or any(not isinstance(k, int) or k < 1 for k in sizes):
+            raise HyFoGError(f"sizes must be integers >= 1, the largest l ({l}), got {sizes!r}")
         self.l = l
+        self.sizes = sizes
+        """the hyperedge sizes it holds: (l,) for the paper's fixed team"""
         self.max_size = max_size
         self._order: dict[NodeId, int] = {}  # node → insertion rank
         self._next = 0
@@ -83,8 +95,9 @@ class HyFoG:
     def set_weight(self, nodes: Iterable[NodeId], weight: float, episodes: int = 1) -> None:
         """Record `episodes` episodes of mean team return `weight` for this node set."""
         nodes = tuple(nodes)
-        if len(nodes) != self.l:
-            raise HyFoGError(f"a hyperedge holds exactly l={self.l} nodes, got {len(nodes)}")
+        if len(nodes) not in self.sizes:
+            held = f"l={self.l}" if self.sizes == (self.l,) else f"one of {list(self.sizes)}"
+            raise HyFoGError(f"a hyperedge holds exactly {held} nodes, got {len(nodes)}")
         if len(set(nodes)) != len(nodes):
             raise HyFoGError(f"a hyperedge may not repeat a node, got {nodes}")
         for node in nodes:
@@ -135,18 +148,22 @@ class HyFoG:
         return (e for e in self.edges if node in e.nodes)
 
     def missing_edges(self, node: NodeId) -> list[tuple[NodeId, ...]]:
-        """Every l-set holding `node` that has no weight yet."""
+        """Every node set of a hyperedge's size holding `node` that has no weight yet,
+        smallest first."""
         others = [v for v in self.nodes if v != node]
         return [
             self.sorted_nodes((node, *rest))
-            for rest in itertools.combinations(others, self.l - 1)
+            for k in self.sizes
+            for rest in itertools.combinations(others, k - 1)
             if frozenset((node, *rest)) not in self._edges
         ]
 
     # ---- JSON ---------------------------------------------------------------------------
     def to_dict(self) -> dict:
+        sizes = {} if self.sizes == (self.l,) else {"sizes": list(self.sizes)}
         return {
             "l": self.l,
+            **sizes,
             "max_size": self.max_size,
             "nodes": self.nodes,
             "edges": [
@@ -161,7 +178,7 @@ class HyFoG:
 
     @classmethod
     def from_dict(cls, data: dict) -> HyFoG:
-        g = cls(l=data["l"], max_size=data["max_size"])
+        g = cls(l=data["l"], max_size=data["max_size"], sizes=data.get("sizes"))
         for node in data["nodes"]:
             g.add_node(node)
         for edge in data["edges"]:
@@ -176,4 +193,7 @@ class HyFoG:
         return isinstance(other, HyFoG) and self.to_dict() == other.to_dict()
 
     def __repr__(self) -> str:
-        return f"HyFoG(l={self.l}, nodes={len(self)}/{self.max_size}, edges={len(self._edges)})"
+        sizes = "" if self.sizes == (self.l,) else f", sizes={list(self.sizes)}"
+        return (
+            f"HyFoG(l={self.l}{sizes}, nodes={len(self)}/{self.max_size}, edges={len(self._edges)})"
+        )

@@ -4,7 +4,9 @@ The coalition value is v(S) = Σ_{T ⊆ S, T ∈ E} w(T). Written as a sum of un
 v = Σ_T w(T)·u_T with u_T(S) = 1 if T ⊆ S, each u_T gives every member of T the value 1/|T|
 (symmetry + efficiency + null player), and the Shapley value is linear, so
 
-    MV_i = Σ_{T ∋ i} w(T) / l.
+    MV_i = Σ_{T ∋ i} w(T) / |T|,
+
+which is Σ_{T ∋ i} w(T) / l when every hyperedge holds l nodes (the paper's fixed team).
 
 A HyFoG is connected, so its Myerson value equals this Shapley value (paper Appendix).
 """
@@ -38,7 +40,7 @@ def myerson_value(
 def _closed(g: HyFoG) -> dict[NodeId, float]:
     value = dict.fromkeys(g.nodes, 0.0)
     for nodes, weight in g.weights():
-        share = weight / g.l
+        share = weight / len(nodes)
         for node in nodes:
             value[node] += share
     return value

@@ -101,8 +101,14 @@ class RunConfig:
 
     @property
     def l(self) -> int:  # noqa: E743 - the paper's l
-        """Hyperedge size: one node per pursuer slot."""
-        return self.env.n_pursuers
+        """Hyperedge size: one node per pursuer slot (the largest team, `edge_sizes`)."""
+        return self.edge_sizes[-1]
+
+    @property
+    def edge_sizes(self) -> tuple[int, ...]:
+        """The hyperedges' sizes: the sizes of the teams an episode is flown in (contract
+        §6.2, `TeamChangeConfig.sizes`); the paper's team: (n_pursuers,)."""
+        return self.env.team.sizes(self.env.n_pursuers)
 
     def export(self, state: Mapping[str, Any]) -> dict[str, Any]:
         """The plain-torch export (`MLPPolicy`) of an RLlib module state of this config,

@@ -166,6 +166,7 @@ class Trainer:
             rules=method.rules(c),
             population=c.population,
             l=c.l,
+            sizes=c.edge_sizes,
             seed=c.seed,
             edges_per_learner=c.grapher.edges_per_learner,
             initial_edges=c.grapher.initial_edges,

@@ -154,7 +154,11 @@ def _linear_layers(state: Mapping[str, Any], prefix: str) -> list[tuple[Any, Any
 
 
 class MLPPolicy(Policy):
-    """A deterministic pursuer from an export dict: its distribution's deterministic action."""
+    """A deterministic pursuer from an export dict: its distribution's deterministic action.
+
+    It plays a scenario whose observation holds as many pursuer and evader slots as the one
+    it was trained in: the same team, or, trained on slots (`env.obs_pursuers`), any team
+    up to them."""
 
     def __init__(self, config: PursuitConfig, export: Mapping[str, Any], name: str = "mlp"):
         super().__init__(config)
@@ -176,10 +180,19 @@ class MLPPolicy(Policy):
         """the arena it was trained in (PursuitConfig.to_dict()), when the export says"""
         if self.scenario is not None:
             trained = (self.scenario["n_pursuers"], self.scenario["n_evaders"])
-            if trained != (config.n_pursuers, config.n_evaders):
+            slots = (
+                self.scenario.get("obs_pursuers") or trained[0],
+                self.scenario.get("obs_evaders") or trained[1],
+            )
+            if slots != (config.pursuer_slots, config.evader_slots):
                 raise ValueError(
                     f"{name} was trained for {trained[0]} pursuers vs {trained[1]} evader(s); "
                     f"this scenario has {config.n_pursuers} vs {config.n_evaders}"
+                    + (
+                        f" (observed in {slots[0]} and {slots[1]} slots)"
+                        if slots != trained
+                        else ""
+                    )
                 )
         inputs = self.weights[0].shape[1] - len(self.feature_indices)
         if inputs not in (self.layout.dim, self.layout.base_dim):

@@ -66,12 +66,21 @@ def phi_distances(
     }
 
 
-def saved_population(state: Mapping[str, Any], config: PopulationConfig) -> Population:
+def saved_population(
+    state: Mapping[str, Any], config: PopulationConfig, sizes: tuple[int, ...] | None = None
+) -> Population:
     """The population a run goes on with from a saved generation (its `state.json`): its
     members and hyperedges, under the run's own open-ended settings (m, size). A generation 0
     adopted from a shipped build or another run so keeps the members, not that build's m or
-    size (a run with m 4 on a build made with m 3 accepted only by 3)."""
+    size (a run with m 4 on a build made with m 3 accepted only by 3). `sizes`: the run's
+    hyperedge sizes, which the saved ones must be (a G_0 weighed for other teams is not
+    this run's)."""
     population = Population.from_dict(state["population"])
+    if sizes is not None and tuple(sizes) != population.sizes:
+        raise ValueError(
+            f"the saved population's hyperedges are teams of {list(population.sizes)}; this "
+            f"run flies teams of {list(sizes)} (env.team): build its generation 0 for them"
+        )
     if len(population.slots) > config.max_size:
         raise ValueError(
             f"the saved population holds {len(population.slots)} members, more than "
@@ -104,6 +113,8 @@ class CoordinatorSettings:
     is one, uniform draws too (`phi_tv_uniform`)"""
     tags: Mapping[str, str] = field(default_factory=dict)
     """the telemetry's run and trial tags; empty: the run directory's own"""
+    sizes: tuple[int, ...] = ()
+    """the hyperedges' sizes, for teams of several (contract §6.2); empty: (l,)"""
 
 
 @ray.remote(num_cpus=0, max_restarts=0)
@@ -121,12 +132,16 @@ class Coordinator:
         self.generation = self.run.last_completed()
         if self.generation is None:
             self.population = Population(
-                l, population.max_size, population.top_m, population.preferred_only
+                l,
+                population.max_size,
+                population.top_m,
+                population.preferred_only,
+                settings.sizes or None,
             )
             self.last_metrics: dict[str, Any] = {}
         else:
             state = self.run.read_json(self.generation, "state.json")
-            self.population = saved_population(state, population)
+            self.population = saved_population(state, population, settings.sizes or (l,))
             if self.generation == 0:  # the same draw on every start from generation 0
                 rng = np.random.default_rng([self.seed, 0, INITIAL_EDGES_STREAM])
                 self.population.thin(settings.initial_edges, rng)

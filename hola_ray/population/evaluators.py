@@ -11,6 +11,7 @@ member, and its start (imports, the simulator's compiled kernels) overlaps the O
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -18,7 +19,7 @@ from typing import Any
 import numpy as np
 import ray
 
-from hola_ray.config.scenario import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig, TeamChangeConfig
 from hola_ray.population.state import EdgeResult
 from hola_ray.process import pin_threads
 
@@ -49,16 +50,29 @@ def evaluate_teams(
     slots (drawn from `seeds[k]`, as are its episodes), so no member is tied to a slot; a
     team is a set, so the order it is listed in does not matter. A hyperedge's episodes are
     the same whichever others share its rollout; its figures are the same to within the
-    float rounding of the stacked forward pass.
+    float rounding of the stacked forward pass. A team smaller than the scenario's, or one of
+    a run whose team changes, flies as it is, from start to end (`team_config`); teams of
+    several sizes are played one size at a time.
     """
     from hola_ray.evaluation.metrics import team_figures
     from hola_ray.evaluation.rollout import rollout
     from hola_ray.evaluation.stats import episode_seeds
     from hola_ray.policies.learned import MLPPolicy
 
+    sizes = sorted({len(team) for team in teams})
+    if len(sizes) > 1:  # teams of several sizes (contract §6.2): each size its own rollout
+        out: dict[int, EdgeResult] = {}
+        for k in sizes:
+            picked = [i for i, team in enumerate(teams) if len(team) == k]
+            played = evaluate_teams(
+                config, [teams[i] for i in picked], exports, episodes, [seeds[i] for i in picked]
+            )
+            out.update(zip(picked, played, strict=True))
+        return [out[i] for i in range(len(teams))]
     for team in teams:
-        if len(team) != config.n_pursuers:
-            raise ValueError(f"a team holds {config.n_pursuers} members, got {list(team)}")
+        if not 1 <= len(team) <= config.n_pursuers:
+            raise ValueError(f"a team holds 1..{config.n_pursuers} members, got {list(team)}")
+    config = team_config(config, len(teams[0])) if teams else config
     nodes = sorted({int(v) for team in teams for v in team})
     index = {v: k for k, v in enumerate(nodes)}
     policies = [MLPPolicy(config, exports[v], name=f"node_{v}") for v in nodes]
@@ -84,6 +98,20 @@ def evaluate_teams(
         )
         for k, team in enumerate(teams)
     ]
+
+
+def team_config(config: PursuitConfig, size: int) -> PursuitConfig:
+    """The scenario a hyperedge of `size` members is weighed in: `size` pursuers flying
+    together from start to end, observed in the run's own slots, in its arenas; the run's
+    scenario itself for its own fixed team."""
+    if size == config.n_pursuers and not config.team.open:
+        return config
+    return dataclasses.replace(
+        config,
+        n_pursuers=size,
+        obs_pursuers=config.pursuer_slots,
+        team=TeamChangeConfig(),
+    )
 
 
 def chunks(edges: Sequence[tuple[int, ...]], count: int) -> list[list[int]]:

@@ -64,8 +64,11 @@ class Population:
         max_size: int,
         top_m: int,
         preferred_only: bool = False,
+        sizes: Sequence[int] | None = None,
     ):
         self.l, self.max_size, self.top_m = l, max_size, top_m
+        self.sizes = tuple(sorted(set(sizes))) if sizes is not None else (l,)
+        """the teams' sizes, so the hyperedges' (contract §6.2): (l,) for the paper's team"""
         self.preferred_only = preferred_only
         """a candidate joins only at η > 0 (`PopulationConfig.preferred_only`)"""
         self.learner_returns: dict[int, float] = {}
@@ -73,7 +76,7 @@ class Population:
         self.extra: dict[str, Any] = {}
         """what a method keeps between generations (JSON-safe; PBT: its agents' scores
         and hyperparameters)"""
-        self.hyfog = HyFoG(l=l, max_size=max_size + 1)
+        self.hyfog = HyFoG(l=l, max_size=max_size + 1, sizes=self.sizes)
         self.slots: dict[int, int] = {}  # member node → population slot
         self.next_node = 0
         self.candidate: int | None = None
@@ -108,8 +111,9 @@ class Population:
         return node
 
     def initial_edges(self) -> list[tuple[int, ...]]:
-        """Every l-set of members: the hyperedges of G_0."""
-        return [tuple(c) for c in itertools.combinations(self.members, self.l)]
+        """Every l-set of members, or every set of each size, smallest first: the
+        hyperedges of G_0."""
+        return [tuple(c) for k in self.sizes for c in itertools.combinations(self.members, k)]
 
     def thin(self, count: int, rng: np.random.Generator) -> list[tuple[int, ...]]:
         """Keep `count` of the members' hyperedges (all when `count` is 0 or at least their
@@ -130,14 +134,18 @@ class Population:
 
     def candidate_edges(self, count: int, rng: np.random.Generator) -> list[tuple[int, ...]]:
         """The candidate with `count` distinct (l − 1)-sets of members (all when count is 0
-        or at least their number), in a fixed order."""
+        or at least their number), in a fixed order; with several sizes, `count` sets of
+        each size k, of k − 1 members, smallest first."""
         if self.candidate is None:
             raise ValueError("no candidate proposed")
-        sets = list(itertools.combinations(self.members, self.l - 1))
-        if 0 < count < len(sets):
-            picks = np.sort(rng.choice(len(sets), size=count, replace=False))
-            sets = [sets[k] for k in picks]
-        return [(self.candidate, *rest) for rest in sets]
+        out = []
+        for k in self.sizes:
+            sets = list(itertools.combinations(self.members, k - 1))
+            if 0 < count < len(sets):
+                picks = np.sort(rng.choice(len(sets), size=count, replace=False))
+                sets = [sets[j] for j in picks]
+            out += [(self.candidate, *rest) for rest in sets]
+        return out
 
     def record(self, results: Iterable[EdgeResult]) -> None:
         """Write measured hyperedge weights into the HyFoG."""
@@ -204,6 +212,7 @@ class Population:
             raise ValueError("persist between generations only (a candidate is undecided)")
         return {
             "l": self.l,
+            **({} if self.sizes == (self.l,) else {"sizes": list(self.sizes)}),
             "max_size": self.max_size,
             "top_m": self.top_m,
             "preferred_only": self.preferred_only,
@@ -216,7 +225,13 @@ class Population:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Population:
-        p = cls(data["l"], data["max_size"], data["top_m"], data.get("preferred_only", False))
+        p = cls(
+            data["l"],
+            data["max_size"],
+            data["top_m"],
+            data.get("preferred_only", False),
+            data.get("sizes"),
+        )
         p.learner_returns = {int(k): v for k, v in data.get("learner_returns", {}).items()}
         p.extra = dict(data.get("extra", {}))
         for key in ("agent_scores", "agent_hyper"):  # a run saved before `extra` (PBT's)

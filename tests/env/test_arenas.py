@@ -14,8 +14,8 @@ from test_pettingzoo import _drive  # tests/env is on the path (pytest prepends 
 
 from hola_ray.config.scenario import ARENAS, PAPER_BARS
 from hola_ray.env import BatchedPursuit, ConfigError, PursuitConfig
-from hola_ray.env.core import INITIAL_STATE_KEYS
 from hola_ray.env._arena import nearest_on_disc, nearest_static, pack_params
+from hola_ray.env.core import INITIAL_STATE_KEYS
 from hola_ray.env.pettingzoo_env import PursuitEnv
 
 SIZES = [(n_p, n_e) for n_p in (2, 3, 4, 5) for n_e in (1, 2, 3)]
@@ -312,7 +312,6 @@ def test_the_learner_sits_in_the_seat_that_stays_when_the_team_changes():
     played = play(learner, members, config, 40, [0])
     assert played["success"].shape == (40,)
     assert 0.0 <= played["learner_crash"].mean() <= played["collision"].mean() <= 1.0
-
 
 
 def test_an_arena_drawn_per_episode_plays_as_that_arena_does():

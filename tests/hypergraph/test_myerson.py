@@ -27,8 +27,24 @@ def games(draw, max_nodes: int = 7):
     return g
 
 
+@st.composite
+def mixed_games(draw, max_nodes: int = 7):
+    """Games whose hyperedges are teams of several sizes (contract §6.2)."""
+    sizes = sorted(draw(st.sets(st.sampled_from([2, 3, 4, 5]), min_size=2)))
+    n = draw(st.integers(min_value=sizes[-1], max_value=max_nodes))
+    g = HyFoG(l=sizes[-1], max_size=max(n, 10), sizes=sizes)
+    for v in range(n):
+        g.add_node(v)
+    all_sets = [c for k in sizes for c in itertools.combinations(range(n), k)]
+    chosen = draw(st.lists(st.sampled_from(all_sets), unique=True, max_size=len(all_sets)))
+    weight = st.floats(min_value=-100, max_value=100, allow_nan=False, width=64)
+    for nodes in chosen:
+        g.set_weight(nodes, draw(weight), draw(st.integers(1, 5)))
+    return g
+
+
 @settings(max_examples=60, deadline=None)
-@given(games())
+@given(st.one_of(games(), mixed_games()))
 def test_closed_form_equals_brute_force(g):
     closed = myerson_value(g, "closed")
     exact = myerson_value(g, "exact")
@@ -37,7 +53,7 @@ def test_closed_form_equals_brute_force(g):
 
 
 @settings(max_examples=60, deadline=None)
-@given(games())
+@given(st.one_of(games(), mixed_games()))
 def test_efficiency(g):
     # Σ_i MV_i = v(V) = Σ_T w(T)
     values = myerson_value(g, "exact")
@@ -139,3 +155,21 @@ def test_symmetric_players_get_equal_values(l, n, data):  # noqa: E741
             g.set_weight(nodes, weight)
     values = myerson_value(g, "exact")
     assert values[0] == pytest.approx(values[1], abs=1e-9)
+
+
+def test_a_team_of_two_shares_its_weight_by_two_and_one_of_three_by_three():
+    """Hand-worked, teams of 2 and 3: {0,1} 6, {0,1,2} 9 give MV 3 + 3 = 6, 3 + 3 = 6, 3,
+    and a HyFoG of sizes 2 and 3 refuses a team of 4 and round-trips through JSON."""
+    g = HyFoG(l=3, max_size=5, sizes=(2, 3))
+    for v in range(4):
+        g.add_node(v)
+    g.set_weight((0, 1), 6.0)
+    g.set_weight((0, 1, 2), 9.0)
+    assert myerson_value(g, "closed") == pytest.approx({0: 6.0, 1: 6.0, 2: 3.0, 3: 0.0})
+    assert myerson_value(g, "exact") == pytest.approx({0: 6.0, 1: 6.0, 2: 3.0, 3: 0.0})
+    with pytest.raises(ValueError, match=r"one of \[2, 3\] nodes, got 4"):
+        g.set_weight((0, 1, 2, 3), 1.0)
+    assert HyFoG.from_json(g.to_json()) == g and g.sizes == (2, 3)
+    assert len(g.missing_edges(3)) == 3 + 3  # {3, x} for three x, {3, x, y} for three pairs
+    with pytest.raises(ValueError, match="the largest l"):
+        HyFoG(l=3, sizes=(2, 4))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import ray
 
-from hola_ray.config.scenario import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig, TeamChangeConfig
 from hola_ray.evaluation.rollout import rollout
 from hola_ray.evaluation.stats import episode_seeds
 from hola_ray.policies.learned import MLPPolicy, random_export
@@ -18,6 +18,7 @@ from hola_ray.population.evaluators import (
     chunks,
     evaluate_team,
     evaluate_teams,
+    team_config,
 )
 from hola_ray.population.grapher import evaluate_edges, evaluate_edges_here
 from hola_ray.population.state import edge_seed
@@ -170,3 +171,24 @@ def test_a_monitor_whose_actor_died_is_played_here_to_the_same_figures(pool):
     assert figures(there.collect()) == figures(expected)
     for k, actor in actors.items():  # the next test's pool is whole again
         pool.replace(k, actor)
+
+
+def test_hyperedges_of_several_sizes_fly_as_teams_of_their_own_size():
+    """A run whose teams change (5 seats observed, 2 to 5 flying): a hyperedge of k members
+    flies as k pursuers from start to end in the run's slots, so one played among others of
+    other sizes weighs what it weighs alone in that scenario; results keep the edges' order."""
+    team = TeamChangeConfig(present=3, changes=2)
+    env = PursuitConfig(n_pursuers=5, obs_pursuers=5, horizon=150, team=team)
+    exports = {v: random_export(env.obs_dim, seed=v, bias_scale=0.5) for v in range(5)}
+    edges = [(0, 1), (0, 1, 2, 3, 4), (1, 3, 4), (2, 4), (0, 2, 3, 4)]
+    mixed = evaluate_teams(env, edges, exports, 4, [seed_of(e) for e in edges])
+    assert [r.nodes for r in mixed] == edges
+    for edge, result in zip(edges, mixed, strict=True):
+        played = team_config(env, len(edge))
+        assert (played.n_pursuers, played.pursuer_slots, played.team.open) == (len(edge), 5, False)
+        (alone,) = evaluate_teams(played, [edge], exports, 4, [seed_of(edge)])
+        assert (alone.nodes, alone.length, alone.success) == (edge, result.length, result.success)
+        assert alone.team_return == pytest.approx(result.team_return, rel=1e-6)  # the stack's
+    assert len({r.length for r in mixed}) == len(edges)  # five teams, five sets of episodes
+    with pytest.raises(ValueError, match="a team holds 1..5 members"):
+        evaluate_teams(env, [(0, 1, 2, 3, 4, 5)], {**exports, 5: exports[0]}, 1, [0])

@@ -400,3 +400,30 @@ def test_a_generations_monitors_join_its_row_and_a_run_without_them_is_not_finis
     assert run.read_json(1, "metrics.json") == row  # the committed row is never rewritten
     csv_row = list(csv.DictReader(run.metrics_csv.open()))[1]
     assert csv_row["val_success"] == "0.75" and csv_row["monitored"] == "1"
+
+
+def test_a_population_for_teams_of_several_sizes():
+    """Teams of 2 and 3 (contract §6.2): G_0 holds every pair and every triple of the
+    members; a candidate gets `count` sets of each size; the sizes persist, and a saved
+    population of other sizes is refused for the run."""
+    from hola_ray.config.population import PopulationConfig
+    from hola_ray.population.coordinator import saved_population
+
+    p = Population(l=3, max_size=6, top_m=3, sizes=(2, 3))
+    p.add_initial(4)
+    g0 = p.initial_edges()
+    assert len(g0) == 6 + 4 and [len(e) for e in g0] == [2] * 6 + [3] * 4
+    p.record([edge(e, float(sum(e))) for e in g0])
+    candidate = p.propose()
+    picked = p.candidate_edges(2, np.random.default_rng(0))
+    assert [len(e) for e in picked] == [2, 2, 3, 3] and all(e[0] == candidate for e in picked)
+    assert len(p.candidate_edges(0, np.random.default_rng(0))) == 4 + 6
+    p.record([edge(e, 1.0) for e in picked])
+    p.decide()
+    back = Population.from_dict(p.to_dict())
+    assert back.sizes == (2, 3) and back.hyfog == p.hyfog
+    state = {"population": p.to_dict()}
+    run = PopulationConfig(max_size=6, initial_size=4, top_m=3)
+    assert saved_population(state, run, (2, 3)).sizes == (2, 3)
+    with pytest.raises(ValueError, match="teams of \\[2, 3\\]; this run flies teams of \\[3\\]"):
+        saved_population(state, run, (3,))
