@@ -3,6 +3,9 @@
     python -m hola_ray evaluate RUN_DIR|POLICY.pt [...] [--pool hot|het|DIR ...]
         [--partner MODULE:CALLABLE ...] [--episodes 50] [--seeds 0 1 2]
         [--plot] [--out DIR] [--json]
+    python -m hola_ray evaluate --protocol open-teams RUN_DIR|POLICY.pt [...]
+        [--arenas open bar blocks paper] [--modes zero-shot open] [--sizes 2 3 4 5]
+        [--evaders 2] [--episodes 50] [--seeds 0 1 2] [--out DIR]
 
 Per learner and pool, `--episodes` episodes per seed with teammates drawn from the pool,
 and the BR-Prox score over `--cell-episodes` per cell: what each figure means and how its
@@ -18,6 +21,13 @@ reward shaping is not used).
 Pool members trained for another team (more or fewer evaders or teammates) play it
 through `hola_ray.policies.adapter.ScenarioAdapter`.
 
+`--protocol open-teams` plays contract §6.4 instead: every arena, team size and mode
+(zero-shot, open), per pool, with AT-Drone's SUC, COL, AST and REW, the learner's scale,
+and every pair of learners' differences, per cell and over each mode's cells
+(`hola_ray.evaluation.open_teams`). It writes results.json, results.md and one figure per
+arena to --out. Learners trained for any team play it, through the adapter where their
+observation differs.
+
 A learner is a run directory (its final `learner.pt`), a generation folder or a policy
 file: a learned pursuer's export or a D3QN-G export (which reads the first evader and
 plays any number). `--partner MODULE:CALLABLE` (repeatable; MODULE a module name or a path
@@ -29,6 +39,7 @@ that cannot be made or acts wrongly) is one line on stderr and exit code 2.
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 from collections.abc import Mapping
@@ -81,9 +92,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--plot", action="store_true", help="Fig. 4's layout and a table")
     parser.add_argument("--out", type=Path, help="where --plot writes (default runs/evaluation-…)")
     parser.add_argument("--json", action="store_true", help="last line: the figures as JSON")
+    parser.add_argument(
+        "--protocol", choices=("zero-shot", "open-teams"), default="zero-shot", help="see above"
+    )
+    parser.add_argument("--arenas", nargs="+", help="open-teams: the arenas (default: all four)")
+    parser.add_argument("--modes", nargs="+", help="open-teams: zero-shot, open (default: both)")
+    parser.add_argument("--sizes", type=int, nargs="+", help="open-teams: seats (default: 2-5)")
+    parser.add_argument("--evaders", type=int, default=2, help="open-teams: evaders (default 2)")
     args = parser.parse_args(argv)
     if args.episodes < 1 or args.cell_episodes < 1:
         return fail("--episodes and --cell-episodes must be at least 1")
+    if args.protocol == "open-teams":
+        return open_teams(args)
     try:
         config = learners_scenario(args.learners)
         names = args.pool if args.pool else ([] if args.partner else list(EVALUATION_POOLS))
@@ -134,6 +154,62 @@ def main(argv: list[str] | None = None) -> int:
                 }
             )
         )
+    return 0
+
+
+def open_teams(args: argparse.Namespace) -> int:
+    """`--protocol open-teams` (module doc): every cell played, then written to --out."""
+    from hola_ray.config.reader import ConfigError
+    from hola_ray.config.scenario import ARENAS
+    from hola_ray.evaluation import open_teams as protocol
+
+    arenas = args.arenas or list(ARENAS)
+    modes = args.modes or list(protocol.MODES)
+    sizes = args.sizes or list(protocol.SIZES)
+    for given, known, what in (
+        (arenas, ARENAS, "--arenas"),
+        (modes, protocol.MODES, "--modes"),
+        (sizes, protocol.SIZES, "--sizes"),
+    ):
+        unknown = [x for x in given if x not in known]
+        if unknown:
+            return fail(f"{what}: unknown {unknown}; give any of {list(known)}")
+    if args.partner:
+        return fail("--partner is for the zero-shot protocol; give pools with --pool")
+    try:
+        base = PursuitConfig(n_evaders=args.evaders)
+        learners = {}
+        for path in args.learners:
+            name = path.stem if path.is_file() else path.name
+            if path.is_file() and path.parent.name not in ("", "."):
+                name = f"{path.parent.name}/{path.stem}"
+            learners[name] = protocol.learner_loader(path)
+        results = protocol.run_protocol(
+            learners,
+            args.pool or list(EVALUATION_POOLS),
+            base,
+            args.episodes,
+            args.seeds,
+            arenas,
+            modes,
+            sizes,
+            say=lambda line: print(line, flush=True),
+        )
+    except (ConfigError, EvaluationError, PolicyError, PoolError, ValueError) as err:
+        return fail(str(err))
+    out = args.out or RUNS / time.strftime("open-teams-%Y%m%d-%H%M%S")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "results.json").write_text(json.dumps(results, indent=1, allow_nan=True))
+    written = protocol.report(results, out)
+    print(f"wrote {out / 'results.json'}, " + ", ".join(str(p) for p in written))
+    for mode_pool, by_pair in results["leads"].items():
+        for pair, d in by_pair.items():
+            diff = d["difference"]["success"]
+            print(
+                f"{mode_pool}: {pair} success {diff['mean']:+.1%} "
+                f"[{diff['ci95'][0]:+.1%}, {diff['ci95'][1]:+.1%}] over {d['cells']} cells: "
+                f"{diff['verdict']}"
+            )
     return 0
 
 

@@ -38,6 +38,7 @@ from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.compare import figures
 from hola_ray.evaluation.pools import POOLS_DIR, PoolError, load_validation
 from hola_ray.evaluation.teams import play
+from hola_ray.policies.adapter import fitted, trained_scenario
 from hola_ray.policies.base import Policy
 from hola_ray.policies.registry import load_policy, make_policy
 from hola_ray.provenance import commit_id
@@ -72,9 +73,11 @@ def load_references(config: PursuitConfig, folder: Path = REFERENCE_DIR) -> dict
             out[name] = make_policy(entry["policy"], config)
             continue
         scenario = entry["scenario"]
-        if (scenario["n_pursuers"], scenario["n_evaders"]) != (config.n_pursuers, config.n_evaders):
+        sizes = (scenario["n_pursuers"], scenario["n_evaders"])
+        if sizes != (config.n_pursuers, config.n_evaders):
             continue
-        out[name] = load_policy(folder / entry["file"], config, name=entry["name"])
+        trained = trained_scenario(config, *sizes)  # observed in other slots: adapted
+        out[name] = fitted(config, load_policy(folder / entry["file"], trained, entry["name"]))
     return out
 
 

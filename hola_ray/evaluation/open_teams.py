@@ -1,0 +1,345 @@
+"""The open-team protocol (docs/contract.md §6.4; docs/open-teams.md): learners against unseen
+teammate pools in every arena and team size, zero-shot and open, with the learner's scale.
+The command: `python -m hola_ray evaluate --protocol open-teams`.
+
+A cell is (arena, mode, team size n, pool). Its scenario is the learners' evaders in the
+arena, with n seats observed in `SLOTS` pursuer slots, and the default reward:
+
+- `zero-shot`: a fixed unseen team per episode, n pursuers from start to end;
+- `open`: the team changes within the episode: it starts with n − 1 of the n seats flying
+  (the learner's among them) and changes twice, at steps drawn in 10–60 % of the horizon: a
+  teammate leaves (it lands) or the waiting seat joins, a coin deciding where both can
+  (`open_team`).
+
+In each cell every learner, and the reference seats, play the same episodes (the
+evaluation's `hola_ray.evaluation.teams.play`: the learner in seat 0 where the team
+changes, else a random seat; the other seats drawn from the pool per episode). A policy
+trained for another team plays through `hola_ray.policies.adapter.ScenarioAdapter`. The
+figures are AT-Drone's: success (SUC), collision (COL), steps to success (AST) and the
+per-pursuer return (REW), with the learner's own crash, each with a 95 % interval from the
+bootstrap of `hola_ray.evaluation.compare` over the cell's episodes (`unstratified`); the
+learner's scale is the floor (a seat that holds its heading) and the ceilings on the same
+episodes.
+
+Differences A − B between learners are taken on the shared episodes, per cell and over
+each mode's cells at once (`lead`: every cell's episodes resampled within that cell, each
+cell weighing as its episodes do). With one trained seed per
+learner an interval holds episode noise only: it says how these two learners differ on
+these pools, not how two more seeds of their methods would.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hola_ray.config.scenario import ARENAS, PursuitConfig, TeamChangeConfig
+from hola_ray.evaluation.compare import compare, verdict
+from hola_ray.evaluation.pools import load_pool
+from hola_ray.evaluation.report import POOL_LABELS
+from hola_ray.evaluation.scale import CEILINGS, FLOOR, load_references, play_references
+from hola_ray.evaluation.teams import play
+from hola_ray.policies.adapter import fitted
+from hola_ray.policies.base import Policy
+
+MODES = ("zero-shot", "open")
+"""a fixed team per episode; a team that changes within it"""
+SIZES = (2, 3, 4, 5)
+"""the team sizes (seats) of contract §6.2"""
+SLOTS = 5
+"""the pursuer slots every cell's observation holds: the largest team"""
+FIGURES = ("success", "collision", "steps_success", "reward", "learner_crash")
+"""AT-Drone's SUC, COL, AST and REW, and the learner's own crash"""
+
+
+def open_team(size: int) -> TeamChangeConfig:
+    """The `open` mode's team at `size` seats (module doc)."""
+    return TeamChangeConfig(present=size - 1, changes=2, min_team=1, fixed=1)
+
+
+def cell_scenario(base: PursuitConfig, arena: str, mode: str, size: int) -> PursuitConfig:
+    """The scenario of one cell: `base`'s evaders and physics, the default reward, in
+    `arena`, with `size` seats observed in `SLOTS` slots (module doc)."""
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    if size not in SIZES:
+        raise ValueError(f"team size must be one of {list(SIZES)}, got {size}")
+    closed = dataclasses.replace(base, team=TeamChangeConfig(), arenas=())
+    return dataclasses.replace(
+        closed.in_arena(arena).played(),
+        n_pursuers=size,
+        obs_pursuers=SLOTS,
+        obs_evaders=base.evader_slots,
+        team=open_team(size) if mode == "open" else TeamChangeConfig(),
+    )
+
+
+def _row(intervals: Mapping[str, Any]) -> dict[str, Any]:
+    return {
+        m: {"mean": intervals[m]["mean"], "ci95": list(intervals[m]["ci95"])}
+        for m in FIGURES
+        if m in intervals
+    } | ({"normalised": intervals["normalised"]} if "normalised" in intervals else {})
+
+
+def unstratified(played: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """`played` with every episode in one stratum. Partner combinations are too many to
+    resample within at the larger teams (35 multisets of 4 of HeT's 4 members at 5 seats:
+    about 6 of 200 episodes each, and a stratum of one episode never varies), so the
+    protocol resamples episodes as a whole; every seat still draws the same episodes."""
+    return dict(played) | {"stratum": np.zeros(len(played["success"]), dtype=np.int64)}
+
+
+def evaluate_cell(
+    learners: Mapping[str, Policy],
+    members: Sequence[Policy],
+    references: Mapping[str, Policy],
+    config: PursuitConfig,
+    episodes: int,
+    seeds: Sequence[int],
+    pairs: Sequence[tuple[str, str]],
+) -> tuple[dict[str, Any], dict[str, dict[str, np.ndarray]]]:
+    """One cell's figures (per learner and reference seat, the learners' normalised scores
+    and their differences), and every seat's episodes (for `lead`)."""
+    played = {
+        name: unstratified(play(p, list(members), config, episodes, seeds))
+        for name, p in learners.items()
+    }
+    seats = {
+        name: unstratified(v)
+        for name, v in play_references(references, list(members), config, episodes, seeds).items()
+    }
+    ceilings = [c for c in CEILINGS if c in seats]
+    scale = (FLOOR, ceilings) if FLOOR in seats and ceilings else None
+    summary, diffs = compare(
+        {**{k: [v] for k, v in played.items()}, **{k: [v] for k, v in seats.items()}},
+        pairs=pairs,
+        scale=scale,
+    )
+    row: dict[str, Any] = {
+        "learners": {name: _row(summary[name]) for name in played},
+        "references": {name: _row(summary[name]) for name in seats},
+        "differences": {
+            f"{a} − {b}": {m: _difference(diffs[f"{a}-{b}"][m], m) for m in FIGURES}
+            for a, b in pairs
+        },
+        "episodes": episodes * len(seeds),
+    }
+    return row, played
+
+
+def _difference(d: Mapping[str, Any], metric: str) -> dict[str, Any]:
+    higher = metric in ("success", "reward")
+    lower = metric in ("collision", "learner_crash", "steps_success")
+    call = verdict(d, higher_is_better=higher) if higher or lower else "tie"
+    return {"mean": d["mean"], "ci95": list(d["ci95"]), "verdict": call}
+
+
+def lead(
+    cells: Sequence[Mapping[str, Mapping[str, np.ndarray]]], pair: tuple[str, str]
+) -> dict[str, Any]:
+    """A − B over several cells' episodes at once: every cell's episodes resampled within
+    that cell (its stratum made unique)."""
+    a, b = pair
+    joined: dict[str, dict[str, list[np.ndarray]]] = {a: {}, b: {}}
+    for k, cell in enumerate(cells):
+        for name in pair:
+            for field, values in cell[name].items():
+                if field == "stratum":
+                    values = np.asarray(values, dtype=np.int64) * len(cells) + k
+                joined[name].setdefault(field, []).append(np.asarray(values))
+    stacked = {n: [{f: np.concatenate(v) for f, v in joined[n].items()}] for n in pair}
+    summary, diffs = compare(stacked, pairs=[pair])
+    key = f"{a}-{b}"
+    return {
+        "cells": len(cells),
+        "episodes": int(sum(len(c[a]["success"]) for c in cells)),
+        a: _row(summary[a]),
+        b: _row(summary[b]),
+        "difference": {m: _difference(diffs[key][m], m) for m in FIGURES},
+    }
+
+
+def run_protocol(
+    learners: Mapping[str, Callable[[PursuitConfig], Policy]],
+    pools: Sequence[str],
+    base: PursuitConfig,
+    episodes: int,
+    seeds: Sequence[int],
+    arenas: Sequence[str] = tuple(ARENAS),
+    modes: Sequence[str] = MODES,
+    sizes: Sequence[int] = SIZES,
+    say: Callable[[str], None] = print,
+) -> dict[str, Any]:
+    """Every cell of the protocol (module doc). `learners`: name → a function of a cell's
+    scenario giving the learner as it plays it (`learner_loader`)."""
+    names = list(learners)
+    pairs = list(itertools.combinations(names, 2))
+    cells: list[dict[str, Any]] = []
+    per_mode: dict[tuple[str, str], list] = {}
+    for arena, mode, size, pool in itertools.product(arenas, modes, sizes, pools):
+        start = time.perf_counter()
+        config = cell_scenario(base, arena, mode, size)
+        members = list(load_pool(pool, config).values())
+        references = load_references(config)
+        seated = {name: make(config) for name, make in learners.items()}
+        row, played = evaluate_cell(seated, members, references, config, episodes, seeds, pairs)
+        cells.append({"arena": arena, "mode": mode, "size": size, "pool": pool} | row)
+        per_mode.setdefault((mode, pool), []).append(played)
+        figures = ", ".join(
+            f"{n} {row['learners'][n]['success']['mean']:.1%}" for n in names
+        ) + "".join(
+            f", {r} {row['references'][r]['success']['mean']:.1%}" for r in row["references"]
+        )
+        say(
+            f"[{arena} {mode} {size} {POOL_LABELS.get(pool, pool)}] success {figures} "
+            f"({time.perf_counter() - start:.0f} s)"
+        )
+    leads = {
+        f"{mode}/{pool}": {f"{a} − {b}": lead(played, (a, b)) for a, b in pairs}
+        for (mode, pool), played in per_mode.items()
+    }
+    return {
+        "protocol": {
+            "arenas": list(arenas),
+            "modes": list(modes),
+            "sizes": list(sizes),
+            "pools": list(pools),
+            "slots": SLOTS,
+            "evaders": base.n_evaders,
+            "episodes_per_seed": episodes,
+            "seeds": [int(s) for s in seeds],
+            "open_team": dataclasses.asdict(open_team(3)) | {"present": "size - 1"},
+        },
+        "cells": cells,
+        "leads": leads,
+    }
+
+
+def learner_loader(path: str | Path) -> Callable[[PursuitConfig], Policy]:
+    """A learner file or run directory as a function of a cell's scenario: the policy built
+    in the scenario it was trained in, fitted to the cell's (`fitted`)."""
+    from hola_ray.policies.registry import load_policy, played_scenario
+
+    trained = played_scenario(path)
+
+    def make(config: PursuitConfig) -> Policy:
+        if trained is None:  # D3QN-G: it plays any scenario
+            return load_policy(path, config)
+        return fitted(config, load_policy(path, trained))
+
+    return make
+
+
+# ---- the report -----------------------------------------------------------------------------
+def plot_arena(results: Mapping[str, Any], arena: str, path: Path) -> Path:
+    """One arena's figure: success by team size, zero-shot (top) and open (bottom), one
+    column per pool; each learner with its 95 % interval, the floor and the hand-written
+    ceiling dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    protocol = results["protocol"]
+    pools, modes, sizes = protocol["pools"], protocol["modes"], protocol["sizes"]
+    cells = [c for c in results["cells"] if c["arena"] == arena]
+    fig, axes = plt.subplots(
+        len(modes), len(pools), figsize=(4.2 * len(pools), 3.2 * len(modes)), squeeze=False
+    )
+    names = list(cells[0]["learners"]) if cells else []
+    colours = plt.cm.tab10(np.arange(len(names)) % 10)
+    for (i, mode), (j, pool) in itertools.product(enumerate(modes), enumerate(pools)):
+        ax = axes[i, j]
+        here = {c["size"]: c for c in cells if c["mode"] == mode and c["pool"] == pool}
+        xs = [n for n in sizes if n in here]
+        for k, name in enumerate(names):
+            mean = np.array([here[n]["learners"][name]["success"]["mean"] for n in xs])
+            lo, hi = (
+                np.array([here[n]["learners"][name]["success"]["ci95"][e] for n in xs])
+                for e in (0, 1)
+            )
+            shift = (k - (len(names) - 1) / 2) * 0.06
+            ax.errorbar(
+                np.array(xs) + shift,
+                mean,
+                yerr=[mean - lo, hi - mean],
+                marker="o",
+                capsize=3,
+                color=colours[k],
+                label=name,
+            )
+        for ref, style in ((FLOOR, "--"), (CEILINGS[0], ":")):
+            values = [here[n]["references"].get(ref, {}).get("success", {}).get("mean") for n in xs]
+            if any(v is not None for v in values):
+                ax.plot(xs, values, style, color="0.4", lw=1, label=f"{ref} (reference seat)")
+        ax.set_title(f"{mode}, {POOL_LABELS.get(pool, pool)}", fontsize=10)
+        ax.set_xticks(list(sizes))
+        ax.set_ylim(0, 1)
+        ax.set_xlabel("pursuers (seats)")
+        ax.set_ylabel("success")
+        ax.grid(alpha=0.3)
+    if names:
+        axes[0, 0].legend(fontsize=7, loc="lower right")
+    fig.suptitle(f"arena {arena}: success by team size (95 % intervals)", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def table(results: Mapping[str, Any]) -> list[str]:
+    """Markdown: every cell's SUC, COL, AST, REW and own crash per learner (95 % intervals),
+    the reference seats' success, then the leads per mode and pool."""
+
+    def cell(f: Mapping[str, Any], m: str) -> str:
+        mean, (lo, hi) = f["mean"], f["ci95"]
+        if m in ("steps_success", "reward"):
+            return f"{mean:.1f} [{lo:.1f}, {hi:.1f}]"
+        return f"{mean:.1%} [{lo:.1%}, {hi:.1%}]"
+
+    lines = [
+        "| arena | mode | n | pool | learner | SUC | COL | AST | REW | own crash "
+        "| floor / ceiling SUC |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for c in results["cells"]:
+        refs = " / ".join(f"{f['success']['mean']:.1%}" for f in c["references"].values())
+        for name, f in c["learners"].items():
+            cells = " | ".join(cell(f[m], m) for m in FIGURES)
+            lines.append(
+                f"| {c['arena']} | {c['mode']} | {c['size']} | "
+                f"{POOL_LABELS.get(c['pool'], c['pool'])} | {name} | {cells} | {refs} |"
+            )
+    lines += ["", "| mode / pool | A − B | cells | ΔSUC | ΔCOL | ΔREW | verdict (SUC) |"]
+    lines.append("| --- | --- | --- | --- | --- | --- | --- |")
+    for key, by_pair in results["leads"].items():
+        for pair, d in by_pair.items():
+            diff = d["difference"]
+            lines.append(
+                f"| {key} | {pair} | {d['cells']} | "
+                + " | ".join(
+                    f"{diff[m]['mean']:+.3f} [{diff[m]['ci95'][0]:+.3f}, {diff[m]['ci95'][1]:+.3f}]"
+                    for m in ("success", "collision", "reward")
+                )
+                + f" | {diff['success']['verdict']} |"
+            )
+    return lines
+
+
+def report(results: Mapping[str, Any], out: Path) -> list[Path]:
+    """results.json's figures as one PNG per arena and results.md; returns the files."""
+    out.mkdir(parents=True, exist_ok=True)
+    written = [
+        plot_arena(results, arena, out / f"open-teams-{arena}.png")
+        for arena in results["protocol"]["arenas"]
+    ]
+    md = out / "results.md"
+    md.write_text("\n".join(table(results)) + "\n")
+    return [*written, md]

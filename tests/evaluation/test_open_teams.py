@@ -1,0 +1,106 @@
+"""The open-team protocol (contract §6.4): each cell's scenario, every seat on the same
+episodes, the leads over cells, the command's files and errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from hola_ray.commands import evaluate as command
+from hola_ray.config.scenario import PursuitConfig, RewardConfig
+from hola_ray.evaluation import open_teams
+from hola_ray.policies.adapter import ScenarioAdapter
+from hola_ray.policies.learned import random_export
+
+
+@pytest.mark.parametrize("mode", open_teams.MODES)
+@pytest.mark.parametrize("size", open_teams.SIZES)
+def test_a_cells_scenario(mode, size):
+    base = PursuitConfig(n_evaders=2, arenas=("open", "bar"), reward=RewardConfig(capture=3.0))
+    config = open_teams.cell_scenario(base, "blocks", mode, size)
+    assert (config.arena, config.arenas, config.n_pursuers) == ("blocks", (), size)
+    assert (config.pursuer_slots, config.evader_slots, config.n_evaders) == (5, 2, 2)
+    assert config.reward == PursuitConfig().reward  # returns counted alike
+    if mode == "open":
+        assert config.team.present == size - 1 and config.team.changes == 2
+    else:
+        assert not config.team.open
+    with pytest.raises(ValueError, match="mode must be one of"):
+        open_teams.cell_scenario(base, "open", "closed", 3)
+
+
+def learner_file(tmp_path, name: str, n_pursuers: int, slots: int | None, seed: int):
+    """An export of a random learner trained (so it says) for `n_pursuers` vs 2 in `slots`."""
+    trained = PursuitConfig(n_pursuers=n_pursuers, n_evaders=2, obs_pursuers=slots)
+    export = random_export(trained.obs_dim, seed=seed, bias_scale=0.5)
+    path = tmp_path / f"{name}.pt"
+    torch.save(export | {"scenario": trained.to_dict()}, path)
+    return path
+
+
+def test_every_seat_plays_the_cells_episodes_and_a_lead_is_the_cells_at_once(tmp_path):
+    """A 3 vs 2 learner (adapted in 5 slots) and a 5-slot one, twice under two names: each
+    cell's seats play the same episodes, so the twin's difference is 0 exactly and a tie;
+    a lead's point difference is the mean of its cells' (equal episodes per cell)."""
+    fixed = learner_file(tmp_path, "fixed", 3, None, 1)
+    slots = learner_file(tmp_path, "slots", 5, 5, 2)
+    learners = {
+        "fixed": open_teams.learner_loader(fixed),
+        "slots": open_teams.learner_loader(slots),
+        "twin": open_teams.learner_loader(slots),
+    }
+    config = open_teams.cell_scenario(PursuitConfig(n_evaders=2), "open", "zero-shot", 4)
+    assert isinstance(learners["fixed"](config), ScenarioAdapter)
+    assert not isinstance(learners["slots"](config), ScenarioAdapter)
+    results = open_teams.run_protocol(
+        learners,
+        ["het"],
+        PursuitConfig(n_evaders=2, horizon=200),
+        episodes=8,
+        seeds=[0, 1],
+        arenas=["open"],
+        sizes=[2, 4],
+        say=lambda line: None,
+    )
+    cells = results["cells"]
+    assert [(c["mode"], c["size"]) for c in cells] == [
+        ("zero-shot", 2),
+        ("zero-shot", 4),
+        ("open", 2),
+        ("open", 4),
+    ]
+    for c in cells:
+        assert c["episodes"] == 16 and {"floor", "handwritten"} <= set(c["references"])
+        same = c["differences"]["slots − twin"]
+        assert same["success"]["mean"] == 0 and same["success"]["ci95"] == [0, 0]
+        assert same["success"]["verdict"] == "tie"
+    for mode in open_teams.MODES:
+        d = results["leads"][f"{mode}/het"]["fixed − slots"]
+        per_cell = [
+            c["differences"]["fixed − slots"]["reward"]["mean"] for c in cells if c["mode"] == mode
+        ]
+        assert d["cells"] == 2 and d["episodes"] == 32
+        assert d["difference"]["reward"]["mean"] == pytest.approx(np.mean(per_cell))
+    lines = open_teams.table(results)
+    assert sum(line.startswith("| open | open |") for line in lines) == 2 * 3
+    written = open_teams.report(results, tmp_path / "out")
+    assert [p.name for p in written] == ["open-teams-open.png", "results.md"]
+
+
+def test_the_command_writes_its_files_and_refuses_what_it_does_not_know(tmp_path, capsys):
+    learner = learner_file(tmp_path, "mine", 3, None, 3)
+    out = tmp_path / "protocol"
+    argv = [str(learner), "--protocol", "open-teams", "--arenas", "bar", "--sizes", "3"]
+    argv += ["--modes", "open", "--pool", "hot", "--episodes", "4", "--seeds", "0"]
+    assert command.main([*argv, "--out", str(out)]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert [(c["arena"], c["mode"], c["size"], c["pool"]) for c in results["cells"]] == [
+        ("bar", "open", 3, "hot")
+    ]
+    assert (out / "open-teams-bar.png").is_file() and (out / "results.md").is_file()
+    capsys.readouterr()
+    assert command.main([*argv[:-6], "--sizes", "6"]) == 2
+    assert "--sizes: unknown [6]" in capsys.readouterr().err
