@@ -17,6 +17,9 @@ kinematic_success, kinematic_collision, kinematic_length (and their standard err
 (`hola_ray.flight.guard`).
 `--identify` fits the arena's response model to the flown drone instead
 (env.pursuer_response and env.pursuer_response_delay, for training closer to it).
+`--pursuers N` flies a team of N (2 to 5) and `--arena NAME` another arena (contract §6):
+a policy trained on observation slots reads any team up to them; one trained for another
+team, seat 0 or a teammate, flies through `hola_ray.policies.adapter.ScenarioAdapter`.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from typing import Any
 
 from hola_ray.cli import OneLineParser, fail
 from hola_ray.config.reader import ConfigError
-from hola_ray.config.scenario import PursuitConfig
+from hola_ray.config.scenario import PursuitConfig, TeamChangeConfig
 from hola_ray.flight.guard import Guard
 
 INSTALL = "pip install -e '.[deploy]'"
@@ -59,6 +62,41 @@ def learner(spec: str, evaders: int | None) -> tuple[Any, PursuitConfig]:
         config = dataclasses.replace(config, n_evaders=evaders)
         policy = by_name(spec, config)  # a pool member plays other evader counts adapted
     return policy, config
+
+
+def flown_scenario(config: PursuitConfig, pursuers: int | None, arena: str | None) -> PursuitConfig:
+    """`config` flown by a fixed team of `pursuers` in `arena` (either unset: its own),
+    observed in its own slots or in as many as the team where that is larger."""
+    flown = dataclasses.replace(config, team=TeamChangeConfig(), arenas=())
+    if arena is not None:
+        flown = flown.in_arena(arena)
+    if pursuers is not None:
+        slots = max(config.pursuer_slots, pursuers)
+        flown = dataclasses.replace(flown, n_pursuers=pursuers, obs_pursuers=slots)
+    return flown
+
+
+def seated(spec: str, policy: Any, config: PursuitConfig) -> Any:
+    """`policy` (of `spec`) as it flies `config`: an ONNX file read in `config`'s slots, a
+    torch policy fitted to them (`fitted`)."""
+    from hola_ray.policies.adapter import fitted
+
+    if spec.endswith(".onnx"):
+        from hola_ray.policies.deploy import OnnxPolicy
+
+        return OnnxPolicy(spec, config)
+    return fitted(config, policy)
+
+
+def teammate(name: str, config: PursuitConfig) -> Any:
+    """A teammate by registry name, pool member id (adapted by its pool) or file (built
+    in the scenario it was trained in, then fitted to `config`)."""
+    from hola_ray.commands.replay import resolve as by_name
+
+    if Path(name).exists():
+        policy, _ = learner(name, None)
+        return seated(name, policy, config)
+    return by_name(name, config)
 
 
 def kinematic(config: PursuitConfig) -> PursuitConfig:
@@ -128,6 +166,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=32)
     parser.add_argument("--evaders", type=int, default=None, help="a pool member's evader count")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--pursuers", type=int, default=None, help="fly a team of N (2-5)")
+    parser.add_argument("--arena", default=None, help="fly another arena: open, bar, blocks, paper")
     parser.add_argument("--horizon", type=int, default=None, help="shorter episodes (tests)")
     parser.add_argument(
         "--replay", type=Path, default=None, help="PNG: the first episode flown and in the arena"
@@ -154,15 +194,16 @@ def main(argv: list[str] | None = None) -> int:
         return fail("give the policy to fly (an .onnx file, run directory, .pt or member id)")
     try:
         seat0, config = learner(args.policy, args.evaders)
+        if args.pursuers is not None or args.arena is not None or config.team.open:
+            config = flown_scenario(config, args.pursuers, args.arena)
+            seat0 = seated(args.policy, seat0, config)
         if args.horizon is not None:
             config = dataclasses.replace(config, horizon=args.horizon)  # checked on creation
-        from hola_ray.commands.replay import resolve as by_name
-
         mates = args.teammates or [args.policy] * (config.n_pursuers - 1)
         if len(mates) != config.n_pursuers - 1:
             raise ValueError(f"give {config.n_pursuers - 1} teammates, got {len(mates)}")
         team = [seat0] + [
-            seat0 if (name == args.policy and args.teammates is None) else by_name(name, config)
+            seat0 if (name == args.policy and args.teammates is None) else teammate(name, config)
             for name in mates
         ]
     except (ValueError, ConfigError, OSError, ImportError) as err:

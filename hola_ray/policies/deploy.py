@@ -292,11 +292,13 @@ def team_entry(config: PursuitConfig) -> dict[str, Any]:
         "trained_evaders": config.n_evaders,
         "team_changes": config.team.changes,
         "arena": config.arena,
+        "arenas": list(config.arenas or (config.arena,)),
         "meaning": (
             "teams of `pursuers` (the learner among them) against `evaders` fill the "
             "observation's slots, the missing teammates as unobserved and the missing "
             "evaders as captured; trained with teams of `trained_pursuers` against "
-            "`trained_evaders` in `arena`"
+            "`trained_evaders` in `arenas` (drawn per episode where several; `arena` the "
+            "first), the team changing `team_changes` times an episode"
         ),
     }
 

@@ -3,12 +3,15 @@ the arena takes the flown positions, and `python -m hola_ray fly` reports both c
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from hola_ray.config.scenario import PursuitConfig
 from hola_ray.env.core import BatchedPursuit
@@ -98,3 +101,47 @@ def test_the_fly_command_flies_one_short_episode_and_ends_on_a_json_line(tmp_pat
         assert figures[f"{column}collision"] == float(crashed)
     assert figures["scenario"] == "3 vs 2"
     assert (tmp_path / "r.png").stat().st_size > 10_000
+
+
+def test_an_open_team_learner_exports_and_flies_in_teams_of_three_and_five(tmp_path):
+    """A learner trained (so its export says) on 5 pursuer slots with teams of 2 to 5 in
+    the four arenas: its ONNX manifest states those teams and arenas, and the fly command
+    flies it in a team of 3 and one of 5 (its copies as teammates), and in another arena,
+    beside the kinematic arena; a 3 vs 2 pool member flies as a teammate in the 5."""
+    from hola_ray.commands import export, fly
+    from hola_ray.config.scenario import ARENAS, TeamChangeConfig
+    from hola_ray.policies.learned import random_export
+
+    trained = PursuitConfig(
+        n_pursuers=5,
+        n_evaders=2,
+        obs_pursuers=5,
+        arenas=tuple(ARENAS),
+        team=TeamChangeConfig(present=(2, 5), changes=2, min_team=2),
+    )
+    pt = tmp_path / "open.pt"
+    torch.save(random_export(trained.obs_dim, seed=4) | {"scenario": trained.to_dict()}, pt)
+    onnx = tmp_path / "open.onnx"
+    assert export.main([str(pt), "--onnx", str(onnx)]) == 0
+    team = json.loads(onnx.with_suffix(".json").read_text())["team"]
+    assert (team["pursuers"], team["trained_pursuers"], team["team_changes"]) == (
+        [1, 5],
+        [2, 5],
+        2,
+    )
+    assert team["arenas"] == list(ARENAS)
+    runs = {
+        "three": ["--pursuers", "3"],
+        "five": ["--pursuers", "5", "--teammates", "open.onnx", "ppo-1", "greedy", "open.onnx"],
+        "bar": ["--pursuers", "3", "--arena", "bar"],
+    }
+    for name, extra in runs.items():
+        argv = [str(onnx), *extra, "--episodes", "1", "--horizon", "120", "--json"]
+        argv = [str(tmp_path / a) if a == "open.onnx" else a for a in argv]
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            assert fly.main(argv) == 0, name
+        figures = json.loads(out.getvalue().strip().splitlines()[-1])
+        size = 5 if name == "five" else 3
+        assert figures["scenario"] == f"{size} vs 2", name
+        assert 1 <= figures["length"] <= 120 and 1 <= figures["kinematic_length"] <= 120

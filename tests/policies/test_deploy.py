@@ -65,6 +65,7 @@ def test_the_manifest_describes_every_observation_entry_and_the_action(tmp_path)
     team = data["team"]
     assert (team["pursuers"], team["evaders"], team["trained_pursuers"]) == ([1, 3], [1, 2], [3, 3])
     assert (team["trained_evaders"], team["arena"], team["team_changes"]) == (2, "paper", 0)
+    assert team["arenas"] == ["paper"]
     # OnnxPolicy reads it back and refuses a file changed after the export
     obs = played(policy, 2)
     np.testing.assert_allclose(OnnxPolicy(path).act(obs), policy.act(obs), atol=1e-5, rtol=0)
