@@ -40,6 +40,7 @@ that cannot be made or acts wrongly) is one line on stderr and exit code 2.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 from collections.abc import Mapping
@@ -99,6 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--modes", nargs="+", help="open-teams: zero-shot, open (default: both)")
     parser.add_argument("--sizes", type=int, nargs="+", help="open-teams: seats (default: 2-5)")
     parser.add_argument("--evaders", type=int, default=2, help="open-teams: evaders (default 2)")
+    parser.add_argument("--horizon", type=int, help="open-teams: shorter episodes (tests)")
     args = parser.parse_args(argv)
     if args.episodes < 1 or args.cell_episodes < 1:
         return fail("--episodes and --cell-episodes must be at least 1")
@@ -178,6 +180,8 @@ def open_teams(args: argparse.Namespace) -> int:
         return fail("--partner is for the zero-shot protocol; give pools with --pool")
     try:
         base = PursuitConfig(n_evaders=args.evaders)
+        if args.horizon is not None:
+            base = dataclasses.replace(base, horizon=args.horizon)  # checked on creation
         learners = {}
         for path in args.learners:
             name = path.stem if path.is_file() else path.name

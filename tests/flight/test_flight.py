@@ -136,7 +136,7 @@ def test_an_open_team_learner_exports_and_flies_in_teams_of_three_and_five(tmp_p
         "bar": ["--pursuers", "3", "--arena", "bar"],
     }
     for name, extra in runs.items():
-        argv = [str(onnx), *extra, "--episodes", "1", "--horizon", "120", "--json"]
+        argv = [str(onnx), *extra, "--episodes", "1", "--horizon", "60", "--json"]
         argv = [str(tmp_path / a) if a == "open.onnx" else a for a in argv]
         out = io.StringIO()
         with contextlib.redirect_stdout(out):
@@ -144,4 +144,4 @@ def test_an_open_team_learner_exports_and_flies_in_teams_of_three_and_five(tmp_p
         figures = json.loads(out.getvalue().strip().splitlines()[-1])
         size = 5 if name == "five" else 3
         assert figures["scenario"] == f"{size} vs 2", name
-        assert 1 <= figures["length"] <= 120 and 1 <= figures["kinematic_length"] <= 120
+        assert 1 <= figures["length"] <= 60 and 1 <= figures["kinematic_length"] <= 60
