@@ -205,6 +205,8 @@ def test_a_pilot_is_trained_only(tmp_path):
         ({"overrides": [1]}, "overrides must be a mapping"),
         ({"methods": {"sp": 3}}, "methods.sp must be a mapping of overrides"),
         ({"evaluation": {"pairs": [["sp", "fcp"]]}}, "evaluation.pairs must be"),
+        ({"evaluation": {"protocol": "closed"}}, "evaluation.protocol must be zero-shot or open"),
+        ({"evaluation": {"sizes": [6]}}, r"evaluation.sizes must be any of \[2, 3, 4, 5\]"),
     ],
 )
 def test_a_bad_experiment_config_is_one_clear_error(tmp_path, patch, message):
@@ -336,6 +338,57 @@ def test_a_pool_named_by_its_folder_is_the_same_pool():
     np.testing.assert_array_equal(by_folder["returns"], by_name["returns"])
     for seat, played in by_name["seats"].items():  # the learner's scale's reference seats
         np.testing.assert_array_equal(by_folder["seats"][seat]["success"], played["success"])
+
+
+def test_an_open_team_evaluation_figures_each_method_over_its_seeds(tmp_path):
+    """`evaluation.protocol: open-teams`: every trial through the grid, each method over its
+    seeds (variants of one method apart), written to OUT/open-teams; trials chasing
+    different numbers of evaders are refused."""
+    from types import SimpleNamespace
+
+    import torch
+
+    from hola_ray.experiment.config import EvaluationSettings
+    from hola_ray.experiment.runner import Runner
+    from hola_ray.policies.learned import random_export
+
+    envs = {
+        "hola_open": PursuitConfig(n_pursuers=5, n_evaders=2, obs_pursuers=5),
+        "hola": PursuitConfig(n_evaders=2),
+    }
+    trials = [f"{m}-s{k}" for k in (0, 1) for m in envs]
+    for t in trials:
+        env = envs[t.rpartition("-s")[0]]
+        export = random_export(env.obs_dim, seed=len(t) + int(t[-1]), bias_scale=0.5)
+        torch.save(export | {"scenario": env.to_dict()}, tmp_path / f"{t}.pt")
+    settings = EvaluationSettings(
+        episodes=4,
+        seeds=(0,),
+        pools=("het",),
+        protocol="open-teams",
+        arenas=("bar",),
+        modes=("open",),
+        sizes=(4,),
+    )
+    runner = SimpleNamespace(
+        exp=SimpleNamespace(trials=lambda: trials, methods=dict(envs), evaluation=settings),
+        configs={t: SimpleNamespace(env=envs[t.rpartition("-s")[0]]) for t in trials},
+        learner_file=lambda t: tmp_path / f"{t}.pt",
+        out=tmp_path / "exp",
+        say=lambda line: None,
+    )
+    results = Runner.evaluate_open_teams(runner)
+    assert results["protocol"]["methods"] == {
+        "hola_open": ["hola_open-s0", "hola_open-s1"],
+        "hola": ["hola-s0", "hola-s1"],
+    }
+    assert results["protocol"]["training_seeds"] == {"hola_open": [0, 1], "hola": [0, 1]}
+    (cell,) = results["cells"]
+    assert set(cell["differences"]) == {"hola_open − hola"} and len(cell["trials"]) == 4
+    assert (tmp_path / "exp" / "open-teams" / "open-teams-bar.png").is_file()
+    runner.configs["hola-s1"] = SimpleNamespace(env=PursuitConfig(n_evaders=1))
+    with pytest.raises(RuntimeError, match="different numbers of evaders"):
+        Runner.evaluate_open_teams(runner)
 
 
 def test_the_evaluation_plays_the_trials_scenario_with_one_reward():

@@ -96,6 +96,10 @@ def unstratified(played: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     return dict(played) | {"stratum": np.zeros(len(played["success"]), dtype=np.int64)}
 
 
+Groups = Mapping[str, Sequence[str]]
+"""method → the names of its learners (its trained seeds, in the order of `training_seeds`)"""
+
+
 def evaluate_cell(
     learners: Mapping[str, Policy],
     members: Sequence[Policy],
@@ -103,10 +107,13 @@ def evaluate_cell(
     config: PursuitConfig,
     episodes: int,
     seeds: Sequence[int],
-    pairs: Sequence[tuple[str, str]],
+    groups: Groups,
+    training_seeds: Mapping[str, Sequence[int]] | None = None,
 ) -> tuple[dict[str, Any], dict[str, dict[str, np.ndarray]]]:
-    """One cell's figures (per learner and reference seat, the learners' normalised scores
-    and their differences), and every seat's episodes (for `lead`)."""
+    """One cell's figures (per method, its seeds and episodes resampled, and per reference
+    seat), the methods' normalised scores and their differences (every pair, the paired
+    seeds resampled together where `training_seeds` match), and every learner's and seat's
+    episodes (for `lead`)."""
     played = {
         name: unstratified(play(p, list(members), config, episodes, seeds))
         for name, p in learners.items()
@@ -117,13 +124,18 @@ def evaluate_cell(
     }
     ceilings = [c for c in CEILINGS if c in seats]
     scale = (FLOOR, ceilings) if FLOOR in seats and ceilings else None
+    pairs = list(itertools.combinations(groups, 2))
     summary, diffs = compare(
-        {**{k: [v] for k, v in played.items()}, **{k: [v] for k, v in seats.items()}},
+        {
+            **{m: [played[n] for n in names] for m, names in groups.items()},
+            **{k: [v] for k, v in seats.items()},
+        },
         pairs=pairs,
+        seeds=training_seeds,
         scale=scale,
     )
     row: dict[str, Any] = {
-        "learners": {name: _row(summary[name]) for name in played},
+        "learners": {m: _row(summary[m]) for m in groups},
         "references": {name: _row(summary[name]) for name in seats},
         "differences": {
             f"{a} − {b}": {m: _difference(diffs[f"{a}-{b}"][m], m) for m in FIGURES}
@@ -131,6 +143,8 @@ def evaluate_cell(
         },
         "episodes": episodes * len(seeds),
     }
+    if any(len(names) > 1 for names in groups.values()):
+        row["trials"] = {n: _row(compare({n: [played[n]]})[0][n]) for n in played}
     return row, played
 
 
@@ -142,24 +156,32 @@ def _difference(d: Mapping[str, Any], metric: str) -> dict[str, Any]:
 
 
 def lead(
-    cells: Sequence[Mapping[str, Mapping[str, np.ndarray]]], pair: tuple[str, str]
+    cells: Sequence[Mapping[str, Mapping[str, np.ndarray]]],
+    pair: tuple[str, str],
+    groups: Groups | None = None,
+    training_seeds: Mapping[str, Sequence[int]] | None = None,
 ) -> dict[str, Any]:
-    """A − B over several cells' episodes at once: every cell's episodes resampled within
-    that cell (its stratum made unique)."""
-    a, b = pair
-    joined: dict[str, dict[str, list[np.ndarray]]] = {a: {}, b: {}}
+    """A − B over several cells' episodes at once: each learner's episodes of every cell
+    joined, every cell's resampled within that cell (its stratum made unique), a method's
+    seeds resampled as in `compare`."""
+    groups = groups or {name: [name] for name in pair}
+    joined: dict[str, dict[str, list[np.ndarray]]] = {}
     for k, cell in enumerate(cells):
-        for name in pair:
-            for field, values in cell[name].items():
-                if field == "stratum":
-                    values = np.asarray(values, dtype=np.int64) * len(cells) + k
-                joined[name].setdefault(field, []).append(np.asarray(values))
-    stacked = {n: [{f: np.concatenate(v) for f, v in joined[n].items()}] for n in pair}
-    summary, diffs = compare(stacked, pairs=[pair])
+        for method in pair:
+            for name in groups[method]:
+                for field, values in cell[name].items():
+                    if field == "stratum":
+                        values = np.asarray(values, dtype=np.int64) * len(cells) + k
+                    joined.setdefault(name, {}).setdefault(field, []).append(np.asarray(values))
+    trials = {n: {f: np.concatenate(v) for f, v in fields.items()} for n, fields in joined.items()}
+    stacked = {m: [trials[n] for n in groups[m]] for m in pair}
+    summary, diffs = compare(stacked, pairs=[pair], seeds=training_seeds)
+    a, b = pair
     key = f"{a}-{b}"
+    first = groups[a][0]
     return {
         "cells": len(cells),
-        "episodes": int(sum(len(c[a]["success"]) for c in cells)),
+        "episodes": int(sum(len(c[first]["success"]) for c in cells)),
         a: _row(summary[a]),
         b: _row(summary[b]),
         "difference": {m: _difference(diffs[key][m], m) for m in FIGURES},
@@ -176,11 +198,15 @@ def run_protocol(
     modes: Sequence[str] = MODES,
     sizes: Sequence[int] = SIZES,
     say: Callable[[str], None] = print,
+    groups: Groups | None = None,
+    training_seeds: Mapping[str, Sequence[int]] | None = None,
 ) -> dict[str, Any]:
     """Every cell of the protocol (module doc). `learners`: name → a function of a cell's
-    scenario giving the learner as it plays it (`learner_loader`)."""
-    names = list(learners)
-    pairs = list(itertools.combinations(names, 2))
+    scenario giving the learner as it plays it (`learner_loader`). `groups`: method → its
+    learners (default: each learner a method of its own); `training_seeds`: each method's
+    seeds, in the order of its learners (methods with the same ones resampled as pairs)."""
+    groups = {m: list(v) for m, v in (groups or {n: [n] for n in learners}).items()}
+    pairs = list(itertools.combinations(groups, 2))
     cells: list[dict[str, Any]] = []
     per_mode: dict[tuple[str, str], list] = {}
     for arena, mode, size, pool in itertools.product(arenas, modes, sizes, pools):
@@ -189,11 +215,13 @@ def run_protocol(
         members = list(load_pool(pool, config).values())
         references = load_references(config)
         seated = {name: make(config) for name, make in learners.items()}
-        row, played = evaluate_cell(seated, members, references, config, episodes, seeds, pairs)
+        row, played = evaluate_cell(
+            seated, members, references, config, episodes, seeds, groups, training_seeds
+        )
         cells.append({"arena": arena, "mode": mode, "size": size, "pool": pool} | row)
         per_mode.setdefault((mode, pool), []).append(played)
         figures = ", ".join(
-            f"{n} {row['learners'][n]['success']['mean']:.1%}" for n in names
+            f"{m} {row['learners'][m]['success']['mean']:.1%}" for m in groups
         ) + "".join(
             f", {r} {row['references'][r]['success']['mean']:.1%}" for r in row["references"]
         )
@@ -202,7 +230,9 @@ def run_protocol(
             f"({time.perf_counter() - start:.0f} s)"
         )
     leads = {
-        f"{mode}/{pool}": {f"{a} − {b}": lead(played, (a, b)) for a, b in pairs}
+        f"{mode}/{pool}": {
+            f"{a} − {b}": lead(played, (a, b), groups, training_seeds) for a, b in pairs
+        }
         for (mode, pool), played in per_mode.items()
     }
     return {
@@ -216,6 +246,8 @@ def run_protocol(
             "episodes_per_seed": episodes,
             "seeds": [int(s) for s in seeds],
             "open_team": dataclasses.asdict(open_team(3)) | {"present": "size - 1"},
+            "methods": groups,
+            "training_seeds": {m: list(v) for m, v in (training_seeds or {}).items()},
         },
         "cells": cells,
         "leads": leads,

@@ -40,6 +40,11 @@ method: the mean over its seeds, whiskers its 95 % interval). Intervals and diff
 `hola_ray.evaluation.compare` (a bootstrap over training seeds within each method and over
 episodes within each partner combination; every trial plays the same episodes, so
 differences are paired).
+With `evaluation: {protocol: open-teams, arenas: [...], modes: [...], sizes: [...]}` the
+trials are played through contract §6.4's grid instead (`hola_ray.evaluation.open_teams`:
+every arena, team size and mode, each method over its seeds, every pair of methods'
+differences per cell and over each mode's cells), written to `DIR/open-teams/`; the
+trials may train in different scenarios then, against one number of evaders.
 While it runs, a line every few seconds (and `DIR/progress.json`) says which trials run,
 wait or are done.
 

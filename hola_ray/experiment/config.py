@@ -38,6 +38,15 @@ class EvaluationSettings:
     pairs: tuple[tuple[str, str], ...] = ()
     """method pairs (A, B) whose difference A − B is reported, beside `hola` against every
     other method"""
+    protocol: str = "zero-shot"
+    """zero-shot: the paper's evaluation in the trials' own scenario; open-teams: contract
+    §6.4's grid (`hola_ray.evaluation.open_teams`), every method against every other"""
+    arenas: tuple[str, ...] = ()
+    """open-teams: the arenas (empty: all four)"""
+    modes: tuple[str, ...] = ()
+    """open-teams: zero-shot, open (empty: both)"""
+    sizes: tuple[int, ...] = ()
+    """open-teams: the team sizes (empty: 2 to 5)"""
 
 
 @dataclass(frozen=True)
@@ -176,6 +185,20 @@ def _evaluation(raw: Any, methods: set[str]) -> EvaluationSettings | None:
     )
     ok = all(set(pair) <= methods for pair in settings.pairs)
     require(ok, "evaluation.pairs", "[A, B] pairs of the experiment's methods", settings.pairs)
+    protocols = ("zero-shot", "open-teams")
+    require(
+        settings.protocol in protocols,
+        "evaluation.protocol",
+        " or ".join(protocols),
+        settings.protocol,
+    )
+    from hola_ray.config.scenario import ARENAS
+    from hola_ray.evaluation.open_teams import MODES, SIZES
+
+    for key, known in (("arenas", ARENAS), ("modes", MODES), ("sizes", SIZES)):
+        given = getattr(settings, key)
+        ok = all(x in known for x in given)
+        require(ok, f"evaluation.{key}", f"any of {list(known)}", list(given))
     return settings
 
 

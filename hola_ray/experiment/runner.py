@@ -330,6 +330,42 @@ class Runner:
             self.say(f"{t}: {figures}")
         return {t: results[t] for t in self.exp.trials()}
 
+    def evaluate_open_teams(self) -> dict[str, Any]:
+        """`evaluation.protocol: open-teams`: every trial's learner through contract §6.4's
+        grid, each method figured over its seeds (paired where the methods share them),
+        written to OUT/open-teams (results.json, results.md, a figure per arena)."""
+        from hola_ray.config.scenario import ARENAS
+        from hola_ray.evaluation import open_teams
+
+        trials = self.exp.trials()
+        evaders = {self.configs[t].env.n_evaders for t in trials}
+        if len(evaders) > 1:
+            raise RuntimeError(
+                f"the trials chase different numbers of evaders ({sorted(evaders)}): the "
+                "open-team grid plays one; evaluate them in separate experiments"
+            )
+        settings = self.exp.evaluation
+        groups = {m: [t for t in trials if parse_trial(t)[0] == m] for m in self.exp.methods}
+        results = open_teams.run_protocol(
+            {t: open_teams.learner_loader(self.learner_file(t)) for t in trials},
+            list(settings.pools),
+            PursuitConfig(n_evaders=evaders.pop()),
+            settings.episodes,
+            list(settings.seeds),
+            list(settings.arenas or ARENAS),
+            list(settings.modes or open_teams.MODES),
+            list(settings.sizes or open_teams.SIZES),
+            say=self.say,
+            groups=groups,
+            training_seeds={m: [parse_trial(t)[1] for t in ts] for m, ts in groups.items()},
+        )
+        out = self.out / "open-teams"
+        out.mkdir(parents=True, exist_ok=True)
+        _atomic_json(out / "results.json", results)
+        written = open_teams.report(results, out)
+        self.say(f"wrote {out / 'results.json'}, " + ", ".join(p.name for p in written))
+        return results
+
     # ---- phase 3: results -------------------------------------------------------------------
     def write_results(self, per_trial: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
         """results.json, results.md and figure.png of the evaluated trials (`report`)."""
@@ -360,6 +396,8 @@ class Runner:
                 "trials, their validation curves in each metrics.csv"
             )
             return {}
+        if self.exp.evaluation.protocol == "open-teams":
+            return self.evaluate_open_teams()
         per_trial = self.evaluate()
         results = self.write_results(per_trial)
         self.say(f"wrote {self.out / 'results.json'}, results.md and figure.png")

@@ -105,3 +105,36 @@ def test_the_command_writes_its_files_and_refuses_what_it_does_not_know(tmp_path
     capsys.readouterr()
     assert command.main([*argv[:-8], "--sizes", "6"]) == 2
     assert "--sizes: unknown [6]" in capsys.readouterr().err
+
+
+def test_a_method_of_several_seeds_is_figured_over_its_seeds(tmp_path):
+    """Methods of two trained seeds each: a cell's figure for a method is the mean of its
+    seeds' (each seed's figures kept under `trials`), and its seeds pair with the other
+    method's in the difference and the lead."""
+    paths = {
+        f"{m}-s{k}": learner_file(tmp_path, f"{m}{k}", 5, 5, 10 * i + k)
+        for i, m in enumerate(("a", "b"))
+        for k in (0, 1)
+    }
+    learners = {name: open_teams.learner_loader(p) for name, p in paths.items()}
+    groups = {"a": ["a-s0", "a-s1"], "b": ["b-s0", "b-s1"]}
+    results = open_teams.run_protocol(
+        learners,
+        ["het"],
+        PursuitConfig(n_evaders=2, horizon=150),
+        episodes=6,
+        seeds=[0],
+        arenas=["open"],
+        modes=["zero-shot"],
+        sizes=[3],
+        say=lambda line: None,
+        groups=groups,
+        training_seeds={"a": [0, 1], "b": [0, 1]},
+    )
+    (cell,) = results["cells"]
+    assert set(cell["learners"]) == {"a", "b"} and set(cell["trials"]) == set(paths)
+    for method, names in groups.items():
+        seeds = [cell["trials"][n]["reward"]["mean"] for n in names]
+        assert cell["learners"][method]["reward"]["mean"] == pytest.approx(np.mean(seeds))
+    d = results["leads"]["zero-shot/het"]["a − b"]["difference"]["reward"]
+    assert d["mean"] == pytest.approx(cell["differences"]["a − b"]["reward"]["mean"])
