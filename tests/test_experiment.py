@@ -352,6 +352,10 @@ def test_an_open_team_evaluation_figures_each_method_over_its_seeds(tmp_path):
     from hola_ray.experiment.runner import Runner
     from hola_ray.policies.learned import random_export
 
+    shipped = Experiment.from_yaml(ROOT / "configs" / "experiments" / "open-teams.yaml")
+    assert shipped.evaluation.protocol == "open-teams"
+    sizes = {t: shipped.run_config(t).edge_sizes for t in shipped.trials()}
+    assert sizes == {"hola_open-s900": (2, 3, 4, 5), "hola-s900": (3,)}
     envs = {
         "hola_open": PursuitConfig(n_pursuers=5, n_evaders=2, obs_pursuers=5),
         "hola": PursuitConfig(n_evaders=2),

@@ -64,8 +64,9 @@ def team_figures(config: Any, export: dict[str, Any], episodes: int) -> dict[str
     from hola_ray.evaluation.rollout import rollout
     from hola_ray.policies.learned import MLPPolicy
 
-    team = [MLPPolicy(config.env, export)] * config.env.n_pursuers
-    played = rollout(config.env, team, episodes, seed=FIGURES_SEED)
+    env = config.env.judged()  # a team that changes: the contract's 3-pursuer bar (§5.1)
+    team = [MLPPolicy(env, export)] * env.n_pursuers
+    played = rollout(env, team, episodes, seed=FIGURES_SEED)
     return {
         "success": round(float(played.success.mean()), 4),
         "collision": round(float(played.collision.mean()), 4),
@@ -196,13 +197,14 @@ def build(name: str, episodes: int, progress: bool = True, carry: bool = False) 
     for v in nodes:
         figures[v] = team_figures(config, run.load_member_export(v), episodes)
         print(
-            f"[{name}] node {v}: as {config.env.n_pursuers} copies, success "
+            f"[{name}] node {v}: as {config.env.judged().n_pursuers} copies, success "
             f"{figures[v]['success']:.1%}, collision {figures[v]['collision']:.1%}",
             flush=True,
         )
     gen0 = run.metrics(0)
     roles = config.strategy.member_roles(nodes)
-    scenario = f"{config.env.n_pursuers}v{config.env.n_evaders}"
+    judged = config.env.judged()
+    scenario = f"{judged.n_pursuers}v{judged.n_evaders}"
     built = {
         k: gen0[k] for k in ("pretrain_env_steps", "pretrain_s", "pretrain_competent") if k in gen0
     }

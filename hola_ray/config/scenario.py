@@ -566,6 +566,22 @@ class PursuitConfig:
         """Evaders the observation holds: `obs_evaders`, or the scenario's own."""
         return self.obs_evaders or self.n_evaders
 
+    def judged(self) -> PursuitConfig:
+        """The scenario a learned member of this one is held to the contract's bar in, as
+        a team of its own copies (§5.1): itself for a fixed team of 3 in one arena; for a
+        team that changes, of another size or in drawn arenas (§6), the paper's 3 pursuers
+        against its evaders in the paper's arena, observed in its own slots: the contract's
+        bars are for 3 pursuers only."""
+        if not self.team.open and not self.arenas and self.n_pursuers == 3:
+            return self
+        return dataclasses.replace(
+            self.in_arena("paper"),
+            n_pursuers=3,
+            obs_pursuers=self.pursuer_slots,
+            obs_evaders=self.evader_slots,
+            team=TeamChangeConfig(),
+        )
+
     def in_arena(self, name: str) -> PursuitConfig:
         """This scenario in the named arena (`ARENAS`), its obstacles with it."""
         if name not in ARENAS:

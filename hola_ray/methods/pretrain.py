@@ -235,9 +235,10 @@ def members_as_copies(config: RunConfig, oracle: Oracle) -> list[dict[str, float
     success and collision. Every member's episodes are one rollout (`evaluate_teams`)."""
     states = oracle.weights(oracle.members)
     exports = {k: oracle.export_state(states[m]) for k, m in enumerate(oracle.members)}
-    teams = [(k,) * config.env.n_pursuers for k in exports]
+    env = config.env.judged()  # a team that changes: the contract's 3-pursuer bar (§5.1)
+    teams = [(k,) * env.n_pursuers for k in exports]
     judged = evaluate_teams(
-        config.env,
+        env,
         teams,
         exports,
         config.pretrain.until_episodes,

@@ -12,7 +12,7 @@ import pytest
 from pettingzoo.test import parallel_api_test
 from test_pettingzoo import _drive  # tests/env is on the path (pytest prepends it)
 
-from hola_ray.config.scenario import ARENAS, PAPER_BARS
+from hola_ray.config.scenario import ARENAS, PAPER_BARS, TeamChangeConfig
 from hola_ray.env import BatchedPursuit, ConfigError, PursuitConfig
 from hola_ray.env._arena import nearest_on_disc, nearest_static, pack_params
 from hola_ray.env.core import INITIAL_STATE_KEYS
@@ -377,3 +377,21 @@ def test_pettingzoo_api_and_the_core_with_arenas_drawn_per_episode(n_p):
     parallel_api_test(PursuitEnv(config), num_cycles=150)
     rng = np.random.default_rng(n_p)
     _drive(4, [7, 8, 9, 10], lambda t, obs: rng.random((4, n_p)), config)
+
+
+def test_a_member_of_an_open_team_is_judged_as_the_papers_team_in_its_own_slots():
+    """The bar of contract §5.1 is for 3 pursuers: a population for open teams is judged at
+    3 vs its evaders in the paper's arena, read in its own slots; the paper's team as is."""
+    paper = PursuitConfig(n_evaders=2)
+    assert paper.judged() is paper and PursuitConfig(arena="bar").judged().arena == "bar"
+    open_team = PursuitConfig(
+        n_pursuers=5,
+        n_evaders=2,
+        obs_pursuers=5,
+        arenas=("open", "blocks"),
+        team=TeamChangeConfig(present=(2, 5), changes=2),
+    )
+    judged = open_team.judged()
+    assert (judged.n_pursuers, judged.pursuer_slots, judged.n_evaders) == (3, 5, 2)
+    assert (judged.arena, judged.arenas, judged.team.open) == ("paper", (), False)
+    assert judged.layout == open_team.layout  # its members read it as they trained
