@@ -77,14 +77,14 @@ def flown_scenario(config: PursuitConfig, pursuers: int | None, arena: str | Non
 
 
 def seated(spec: str, policy: Any, config: PursuitConfig) -> Any:
-    """`policy` (of `spec`) as it flies `config`: an ONNX file read in `config`'s slots, a
-    torch policy fitted to them (`fitted`)."""
+    """`policy` (of `spec`) as it flies `config`: read as it is where `config`'s slots are
+    its own, else through the adapter (`fitted`), an ONNX file as a torch policy."""
     from hola_ray.policies.adapter import fitted
 
-    if spec.endswith(".onnx"):
+    if spec.endswith(".onnx") and policy.config.layout == config.layout:
         from hola_ray.policies.deploy import OnnxPolicy
 
-        return OnnxPolicy(spec, config)
+        return OnnxPolicy(spec, config)  # a team its slots hold, read as it is
     return fitted(config, policy)
 
 
