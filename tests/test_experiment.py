@@ -342,8 +342,9 @@ def test_a_pool_named_by_its_folder_is_the_same_pool():
 
 def test_an_open_team_evaluation_figures_each_method_over_its_seeds(tmp_path):
     """`evaluation.protocol: open-teams`: every trial through the grid, each method over its
-    seeds (variants of one method apart), written to OUT/open-teams; trials chasing
-    different numbers of evaders are refused."""
+    seeds (variants of one method apart), in the trials' scenario, written to
+    OUT/open-teams; trials chasing different numbers of evaders, or differing beyond the
+    team and the arena, are refused."""
     from types import SimpleNamespace
 
     import torch
@@ -357,8 +358,10 @@ def test_an_open_team_evaluation_figures_each_method_over_its_seeds(tmp_path):
     sizes = {t: shipped.run_config(t).edge_sizes for t in shipped.trials()}
     assert sizes == {"hola_open-s900": (2, 3, 4, 5), "hola-s900": (3,)}
     envs = {
-        "hola_open": PursuitConfig(n_pursuers=5, n_evaders=2, obs_pursuers=5),
-        "hola": PursuitConfig(n_evaders=2),
+        "hola_open": PursuitConfig(
+            n_pursuers=5, n_evaders=2, obs_pursuers=5, horizon=150, arenas=("open", "bar")
+        ),
+        "hola": PursuitConfig(n_evaders=2, horizon=150),
     }
     trials = [f"{m}-s{k}" for k in (0, 1) for m in envs]
     for t in trials:
@@ -390,8 +393,12 @@ def test_an_open_team_evaluation_figures_each_method_over_its_seeds(tmp_path):
     (cell,) = results["cells"]
     assert set(cell["differences"]) == {"hola_open − hola"} and len(cell["trials"]) == 4
     assert (tmp_path / "exp" / "open-teams" / "open-teams-bar.png").is_file()
+    assert results["protocol"]["evaders"] == 2 and len(cell["learners"]) == 2
     runner.configs["hola-s1"] = SimpleNamespace(env=PursuitConfig(n_evaders=1))
     with pytest.raises(RuntimeError, match="different numbers of evaders"):
+        Runner.evaluate_open_teams(runner)
+    runner.configs["hola-s1"] = SimpleNamespace(env=PursuitConfig(n_evaders=2, horizon=300))
+    with pytest.raises(RuntimeError, match="differ beyond the team and the arena"):
         Runner.evaluate_open_teams(runner)
 
 

@@ -332,8 +332,9 @@ class Runner:
 
     def evaluate_open_teams(self) -> dict[str, Any]:
         """`evaluation.protocol: open-teams`: every trial's learner through contract §6.4's
-        grid, each method figured over its seeds (paired where the methods share them),
-        written to OUT/open-teams (results.json, results.md, a figure per arena)."""
+        grid, in the trials' scenario (which may differ in the team and the arena only),
+        each method figured over its seeds (paired where the methods share them), written
+        to OUT/open-teams (results.json, results.md, a figure per arena)."""
         from hola_ray.config.scenario import ARENAS
         from hola_ray.evaluation import open_teams
 
@@ -344,12 +345,23 @@ class Runner:
                 f"the trials chase different numbers of evaders ({sorted(evaders)}): the "
                 "open-team grid plays one; evaluate them in separate experiments"
             )
+        # the grid's scenario: the trials' own but for the team, the arena and the reward
+        cells = {
+            t: open_teams.cell_scenario(self.configs[t].env, "paper", "zero-shot", 3)
+            for t in trials
+        }
+        base = self.configs[trials[0]].env
+        if any(cell != cells[trials[0]] for cell in cells.values()):
+            raise RuntimeError(
+                "the trials train in scenarios that differ beyond the team and the arena "
+                "(speeds, horizon, sensing…): evaluate them in separate experiments"
+            )
         settings = self.exp.evaluation
         groups = {m: [t for t in trials if parse_trial(t)[0] == m] for m in self.exp.methods}
         results = open_teams.run_protocol(
             {t: open_teams.learner_loader(self.learner_file(t)) for t in trials},
             list(settings.pools),
-            PursuitConfig(n_evaders=evaders.pop()),
+            base,
             settings.episodes,
             list(settings.seeds),
             list(settings.arenas or ARENAS),
