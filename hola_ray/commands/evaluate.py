@@ -5,7 +5,7 @@
         [--plot] [--out DIR] [--json]
     python -m hola_ray evaluate --protocol open-teams RUN_DIR|POLICY.pt [...]
         [--arenas open bar blocks paper] [--modes zero-shot open] [--sizes 2 3 4 5]
-        [--evaders 2] [--episodes 50] [--seeds 0 1 2] [--out DIR]
+        [--evaders N] [--episodes 50] [--seeds 0 1 2] [--out DIR]
 
 Per learner and pool, `--episodes` episodes per seed with teammates drawn from the pool,
 and the BR-Prox score over `--cell-episodes` per cell: what each figure means and how its
@@ -99,7 +99,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--arenas", nargs="+", help="open-teams: the arenas (default: all four)")
     parser.add_argument("--modes", nargs="+", help="open-teams: zero-shot, open (default: both)")
     parser.add_argument("--sizes", type=int, nargs="+", help="open-teams: seats (default: 2-5)")
-    parser.add_argument("--evaders", type=int, default=2, help="open-teams: evaders (default 2)")
+    parser.add_argument(
+        "--evaders", type=int, help="open-teams: evaders (default: the learners' own)"
+    )
     parser.add_argument("--horizon", type=int, help="open-teams: shorter episodes (tests)")
     args = parser.parse_args(argv)
     if args.episodes < 1 or args.cell_episodes < 1:
@@ -159,6 +161,34 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def grid_scenario(paths: list[Path], evaders: int | None) -> PursuitConfig:
+    """The scenario the open-team grid plays: the learners' own (`played_scenario`), which
+    may differ in the team and the arena only, with `evaders` where given; the paper's for
+    D3QN-G learners alone."""
+    from hola_ray.evaluation.open_teams import cell_scenario
+    from hola_ray.policies.registry import played_scenario
+
+    scenarios = []
+    for path in paths:
+        try:
+            scenario = played_scenario(path)
+        except ValueError as err:
+            raise EvaluationError(str(err)) from err
+        if scenario is not None:
+            if evaders is not None:
+                scenario = dataclasses.replace(scenario, n_evaders=evaders, obs_evaders=None)
+            scenarios.append(scenario)
+    if not scenarios:
+        return PursuitConfig(n_evaders=evaders or 2)
+    cells = [cell_scenario(s, "paper", "zero-shot", 3) for s in scenarios]
+    if any(cell != cells[0] for cell in cells):
+        raise EvaluationError(
+            "the learners were trained in scenarios that differ beyond the team and the "
+            "arena (evaders, speeds, horizon…): evaluate them separately, or give --evaders"
+        )
+    return scenarios[0]
+
+
 def open_teams(args: argparse.Namespace) -> int:
     """`--protocol open-teams` (module doc): every cell played, then written to --out."""
     from hola_ray.config.reader import ConfigError
@@ -179,7 +209,7 @@ def open_teams(args: argparse.Namespace) -> int:
     if args.partner:
         return fail("--partner is for the zero-shot protocol; give pools with --pool")
     try:
-        base = PursuitConfig(n_evaders=args.evaders)
+        base = grid_scenario(args.learners, args.evaders)
         if args.horizon is not None:
             base = dataclasses.replace(base, horizon=args.horizon)  # checked on creation
         learners = {}

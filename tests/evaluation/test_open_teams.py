@@ -91,6 +91,8 @@ def test_every_seat_plays_the_cells_episodes_and_a_lead_is_the_cells_at_once(tmp
 
 
 def test_the_command_writes_its_files_and_refuses_what_it_does_not_know(tmp_path, capsys):
+    """The grid in the learner's own scenario, written to --out; an unknown size, and a
+    learner of a scenario that differs beyond the team and the arena, refused in one line."""
     learner = learner_file(tmp_path, "mine", 3, None, 3)
     out = tmp_path / "protocol"
     argv = [str(learner), "--protocol", "open-teams", "--arenas", "bar", "--sizes", "3"]
@@ -105,6 +107,10 @@ def test_the_command_writes_its_files_and_refuses_what_it_does_not_know(tmp_path
     capsys.readouterr()
     assert command.main([*argv[:-8], "--sizes", "6"]) == 2
     assert "--sizes: unknown [6]" in capsys.readouterr().err
+    other = PursuitConfig(n_evaders=2, horizon=300)
+    torch.save(random_export(other.obs_dim) | {"scenario": other.to_dict()}, tmp_path / "o.pt")
+    assert command.main([str(tmp_path / "o.pt"), *argv]) == 2
+    assert "differ beyond the team and the arena" in capsys.readouterr().err
 
 
 def test_a_method_of_several_seeds_is_figured_over_its_seeds(tmp_path):
