@@ -2,8 +2,9 @@
 teammate pools in every arena and team size, zero-shot and open, with the learner's scale.
 The command: `python -m hola_ray evaluate --protocol open-teams`.
 
-A cell is (arena, mode, team size n, pool). Its scenario is the learners' evaders in the
-arena, with n seats observed in `SLOTS` pursuer slots, and the default reward:
+A cell is (arena, mode, team size n, pool). Its scenario is the learners' own (`base`: their
+evaders, speeds, horizon) in the arena, with n seats observed in `SLOTS` pursuer slots, and
+the default reward (`cell_scenario`):
 
 - `zero-shot`: a fixed unseen team per episode, n pursuers from start to end;
 - `open`: the team changes within the episode: it starts with n − 1 of the n seats flying
