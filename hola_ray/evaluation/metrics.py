@@ -45,6 +45,12 @@ def team_figures(result) -> dict[str, float]:
     return {m.field: float(np.mean(getattr(result, m.field))) for m in TEAM}
 
 
+def _share(hits: np.ndarray, seats: np.ndarray) -> np.ndarray:
+    """[E] the share of each row's `seats` that `hits` marks (0 for a row with none)."""
+    count = seats.sum(axis=1)
+    return np.where(count > 0, hits.sum(axis=1) / np.maximum(count, 1), 0.0)
+
+
 _ZERO_SHOT: dict[str, tuple[str, Callable[..., np.ndarray]]] = {
     "success": ("every evader captured", lambda r, seat, n_p: r.success.astype(np.float64)),
     "collision": ("any seat crashed", lambda r, seat, n_p: r.collision.astype(np.float64)),
@@ -57,12 +63,12 @@ _ZERO_SHOT: dict[str, tuple[str, Callable[..., np.ndarray]]] = {
         lambda r, seat, n_p: r.team_return / n_p,
     ),
     "learner_crash": (
-        "the learner's own seat crashed",
-        lambda r, seat, n_p: r.crashed[seat].astype(np.float64),
+        "the learner's own seat crashed (one of its seats, where it plays several)",
+        lambda r, seat, n_p: (r.crashed & seat).any(axis=1).astype(np.float64),
     ),
     "teammate_crash": (
         "the share of teammate seats that crashed",
-        lambda r, seat, n_p: r.crashed[~seat].reshape(len(r.success), n_p - 1).mean(axis=1),
+        lambda r, seat, n_p: _share(r.crashed & ~seat, ~seat),
     ),
 }
 
@@ -72,7 +78,7 @@ ZERO_SHOT: tuple[Metric, ...] = tuple(Metric(k, k, doc) for k, (doc, _) in _ZERO
 
 def zero_shot_values(result, learner_seat: np.ndarray, n_p: int) -> dict[str, np.ndarray]:
     """Each `ZERO_SHOT` metric's per-episode values of a rollout in which `learner_seat`
-    ([episodes, n_p] bool, one True per row) marks the learner."""
+    ([episodes, n_p] bool: one True per row, or its fixed seats) marks the learner."""
     return {name: fn(result, learner_seat, n_p) for name, (_, fn) in _ZERO_SHOT.items()}
 
 

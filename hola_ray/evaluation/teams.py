@@ -1,11 +1,11 @@
 """A learner among drawn teammates: the zero-shot evaluation's episodes (paper §V) and the
 validation teammates' (held-out protocol), one code path for both.
 
-Per seed, every episode seats the learner in a uniformly random seat (seat 0, which never
-leaves, when the team changes within the episode) and fills the other n_p − 1 seats with
-uniform draws (with replacement) from the teammates; a seat that waits to join plays its
-draw once it joins. The draws depend on
-the seed only, so every learner evaluated with the same seeds plays the same episodes.
+Per seed, every episode seats the learner in a uniformly random seat (in its fixed seats,
+0 … team.fixed − 1, which never leave, when the team changes within the episode) and fills
+the other seats with uniform draws (with replacement) from the teammates; a seat that waits
+to join plays its draw once it joins. The draws depend on the seed only, so every learner
+evaluated with the same seeds plays the same episodes.
 """
 
 from __future__ import annotations
@@ -21,21 +21,32 @@ from hola_ray.evaluation.rollout import rollout
 
 
 def draw_teams(
-    rng: np.random.Generator, episodes: int, n_p: int, members: int, seat_zero: bool = False
+    rng: np.random.Generator, episodes: int, n_p: int, members: int, fixed: int = 0
 ) -> np.ndarray:
     """[episodes, n_p] indices into [learner, member 1 … member M]: the learner (0) in a
-    uniformly random seat (`seat_zero`: in seat 0, the seat a team that changes never lets
-    go, contract §6.3), every other seat a uniform draw from the members (1 … M)."""
+    uniformly random seat (`fixed` > 0: in seats 0 … fixed − 1, the seats a team that
+    changes never lets go, contract §6.3), every other seat a uniform draw from the members
+    (1 … M)."""
     teams = rng.integers(1, members + 1, size=(episodes, n_p))
-    seats = rng.integers(0, n_p, size=episodes)
-    teams[np.arange(episodes), 0 if seat_zero else seats] = 0
+    seats = rng.integers(0, n_p, size=episodes)  # drawn either way: the same stream
+    if fixed > 0:
+        teams[:, :fixed] = 0
+    else:
+        teams[np.arange(episodes), seats] = 0
     return teams
+
+
+def learner_seats(config: PursuitConfig) -> int:
+    """`draw_teams`' `fixed` for an episode of `config`: the learner's fixed seats where the
+    team changes (at least seat 0), else 0 (one random seat)."""
+    return max(config.team.fixed, 1) if config.team.open else 0
 
 
 def partner_combinations(teams: np.ndarray, members: int) -> np.ndarray:
     """[E] an id per episode of the members beside the learner, as a multiset (seat order
-    and the learner's seat left out): the bootstrap's strata."""
-    mates = np.sort(teams[teams != 0].reshape(teams.shape[0], teams.shape[1] - 1), axis=1)
+    and the learner's seats left out): the bootstrap's strata."""
+    own = int((teams[0] == 0).sum())
+    mates = np.sort(teams[teams != 0].reshape(teams.shape[0], teams.shape[1] - own), axis=1)
     base = members + 1
     return (mates * base ** np.arange(mates.shape[1])[::-1]).sum(axis=1)
 
@@ -49,10 +60,10 @@ def play(
     n_p = config.n_pursuers
     for s in seeds:
         rng = np.random.default_rng(np.random.SeedSequence([int(s), 7]))
-        teams = draw_teams(rng, episodes, n_p, len(members), config.team.open)
+        teams = draw_teams(rng, episodes, n_p, len(members), learner_seats(config))
         result = rollout(config, [learner, *members], episodes, assignment=teams, seed=int(s))
-        learner_seat = teams == 0  # the learner is candidate 0, in one seat per episode
-        for name, values in zero_shot_values(result, learner_seat, n_p).items():
+        seats = teams == 0  # the learner is candidate 0, in one seat or its fixed ones
+        for name, values in zero_shot_values(result, seats, n_p).items():
             out[name].append(values)
         out["stratum"].append(partner_combinations(teams, len(members)))
         out["eval_seed"].append(np.full(episodes, int(s)))

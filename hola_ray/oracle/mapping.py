@@ -7,8 +7,17 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from hola_ray.config.scenario import PursuitConfig
+
 LEARNER = "learner"
 """The module id of the policy the Oracle trains."""
+
+
+def learner_seats(env: PursuitConfig) -> tuple[int, ...] | None:
+    """The learner's seats in every episode of a team that changes within it: its fixed
+    seats, 0 … team.fixed − 1 (at least seat 0), which never leave (contract §6.3); None for
+    a team kept whole, where the learner takes one uniformly random seat."""
+    return tuple(range(max(env.team.fixed, 1))) if env.team.open else None
 
 
 def member_module(slot: int) -> str:
@@ -23,8 +32,9 @@ def slot_of_agent(agent_id: str) -> int:
 
 class PartnerMapping:
     """A stateful `policy_mapping_fn`: per episode, the learner takes a uniformly random slot
-    (when there is a learner; `learner_seat` fixes it, as a team that changes within the
-    episode does) and every other slot a module drawn from φ; or, with
+    (when there is a learner; `learner_seats` fixes its slots, as a team that changes within
+    the episode does: the seats that never leave) and every other slot a module drawn from
+    φ; or, with
     `whole_team`, one module drawn from φ plays every slot of the episode (MEP's members,
     each in self-play).
 
@@ -40,14 +50,14 @@ class PartnerMapping:
         learner: bool,
         salt: int = 0,
         whole_team: bool = False,
-        learner_seat: int | None = None,
+        learner_seats: Sequence[int] | None = None,
     ):
         if learner and whole_team:
             raise ValueError("a whole team of one module leaves no seat for the learner")
         self.n_pursuers = n_pursuers
         self.learner = learner
-        self.learner_seat = learner_seat
-        """the learner's slot in every episode; None: a uniformly random slot"""
+        self.learner_seats = tuple(learner_seats) if learner_seats is not None else None
+        """the learner's slots in every episode; None: one uniformly random slot"""
         self.whole_team = whole_team
         self.salt = salt
         self.set_phi(phi)
@@ -79,7 +89,8 @@ class PartnerMapping:
         out = [self.modules[k] for k in picks]
         if self.learner:
             seat = int(rng.integers(self.n_pursuers))  # drawn either way: the same stream
-            out[seat if self.learner_seat is None else self.learner_seat] = LEARNER
+            for s in (seat,) if self.learner_seats is None else self.learner_seats:
+                out[s] = LEARNER
         return out
 
     def __call__(self, agent_id: str, episode, **kwargs) -> str:

@@ -301,7 +301,7 @@ def test_the_learner_sits_in_the_seat_that_stays_when_the_team_changes():
     mates[np.arange(500), rng.integers(0, 5, size=500)] = 0
     np.testing.assert_array_equal(closed, mates)
     assert len(set(np.argwhere(closed == 0)[:, 1].tolist())) == 5
-    opened = draw_teams(np.random.default_rng(3), 500, 5, 2, seat_zero=True)
+    opened = draw_teams(np.random.default_rng(3), 500, 5, 2, fixed=1)
     assert (opened[:, 0] == 0).all() and (opened[:, 1:] > 0).all()
 
     config = PursuitConfig.from_dict(
@@ -312,6 +312,46 @@ def test_the_learner_sits_in_the_seat_that_stays_when_the_team_changes():
     played = play(learner, members, config, 40, [0])
     assert played["success"].shape == (40,)
     assert 0.0 <= played["learner_crash"].mean() <= played["collision"].mean() <= 1.0
+
+
+def test_a_learner_may_control_k_of_the_seats():
+    """`team.fixed: 2` of 5: training maps both fixed seats of every episode to the learner
+    and counts two of its transitions per env step; evaluation seats it in both (the other
+    seats drawn as for one), its crash is one of its seats', a teammate crash the share of
+    the other three."""
+    from types import SimpleNamespace
+
+    from hola_ray.evaluation.metrics import zero_shot_values
+    from hola_ray.evaluation.teams import draw_teams, partner_combinations, play
+    from hola_ray.oracle.mapping import LEARNER, PartnerMapping, learner_seats
+    from hola_ray.policies import make_policy
+
+    config = PursuitConfig.from_dict(
+        {"n_pursuers": 5, "team": {"present": 4, "changes": 2, "fixed": 2}}
+    )
+    assert learner_seats(config) == (0, 1) and learner_seats(PursuitConfig()) is None
+    mapping = PartnerMapping(5, {"member_0": 1.0, "member_1": 1.0}, True, learner_seats=(0, 1))
+    for episode in range(20):
+        seats = mapping.assignment(str(episode))
+        assert seats[:2] == [LEARNER, LEARNER] and LEARNER not in seats[2:]
+    one = draw_teams(np.random.default_rng(4), 300, 5, 3, fixed=1)
+    two = draw_teams(np.random.default_rng(4), 300, 5, 3, fixed=2)
+    assert (two[:, :2] == 0).all() and np.array_equal(two[:, 2:], one[:, 2:])
+    assert len(set(partner_combinations(two, 3).tolist())) == 10  # multisets of 3 of 3
+    crashed = np.array([[False, True, True, False, False], [False, False, False, False, True]])
+    result = SimpleNamespace(
+        crashed=crashed,
+        success=np.array([False, True]),
+        collision=crashed.any(axis=1),
+        length=np.array([100, 50]),
+        team_return=np.array([5.0, 10.0]),
+    )
+    values = zero_shot_values(result, two[:2] == 0, 5)
+    np.testing.assert_array_equal(values["learner_crash"], [1.0, 0.0])
+    np.testing.assert_allclose(values["teammate_crash"], [1 / 3, 1 / 3])
+    learner = make_policy("vicsek", config)
+    played = play(learner, [make_policy("greedy", config)], config, 24, [0])
+    assert played["learner_crash"].shape == (24,)
 
 
 def test_an_arena_drawn_per_episode_plays_as_that_arena_does():
