@@ -392,7 +392,8 @@ def test_an_open_team_evaluation_figures_each_method_over_its_seeds(tmp_path):
     assert results["protocol"]["training_seeds"] == {"hola_open": [0, 1], "hola": [0, 1]}
     (cell,) = results["cells"]
     assert set(cell["differences"]) == {"hola_open − hola"} and len(cell["trials"]) == 4
-    assert (tmp_path / "exp" / "open-teams" / "open-teams-bar.png").is_file()
+    assert (tmp_path / "exp" / "open-teams-bar.png").is_file()
+    assert json.loads((tmp_path / "exp" / "results.json").read_text())["cells"][0]["pool"] == "het"
     assert results["protocol"]["evaders"] == 2 and len(cell["learners"]) == 2
     runner.configs["hola-s1"] = SimpleNamespace(env=PursuitConfig(n_evaders=1))
     with pytest.raises(RuntimeError, match="different numbers of evaders"):
@@ -492,9 +493,11 @@ def test_finished_trials_are_published_and_committed_one_by_one(tmp_path):
     progress["sp-s0"]["status"] = "done"
     (run / "progress.json").write_text(json.dumps(progress))
     (run / "results.json").write_text("{}")
+    (run / "open-teams-bar.png").write_bytes(b"png")  # an open-team grid's figure
     assert publish.main([str(run), str(docs), "--commit", "--watch", "0.01"]) == 0
     assert log()[0] == "exp: sp-s0, results published (hola_ray.experiment.publish)"
     assert (docs / "results.json").read_text() == "{}"
+    assert (docs / "open-teams-bar.png").read_bytes() == b"png"
 
 
 def test_the_progress_line_says_the_time_left_at_this_runs_pace():

@@ -43,8 +43,9 @@ differences are paired).
 With `evaluation: {protocol: open-teams, arenas: [...], modes: [...], sizes: [...]}` the
 trials are played through contract §6.4's grid instead (`hola_ray.evaluation.open_teams`:
 every arena, team size and mode, each method over its seeds, every pair of methods'
-differences per cell and over each mode's cells), written to `DIR/open-teams/`; the
-trials may train in different scenarios then, against one number of evaders.
+differences per cell and over each mode's cells), written to `DIR/results.json`,
+`DIR/results.md` and `DIR/open-teams-<arena>.png`; the trials may then train in scenarios
+that differ in the team and the arena.
 While it runs, a line every few seconds (and `DIR/progress.json`) says which trials run,
 wait or are done.
 

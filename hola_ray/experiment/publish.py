@@ -7,7 +7,8 @@ A trial is copied once `progress.json` says it is done: its `config.yaml` (which
 population build), `metrics.csv`, `best.json`, `best.pt` (about 26 kB: anyone can play the
 compared learner) and `learner.json`; each learner's evaluation (`evaluation/TRIAL.json`) as
 it is played; then, once written, the experiment's `experiment.yaml`,
-`results.json`, `results.md` and `figure.png`. `--commit` commits each new trial on its own
+`results.json`, `results.md` and `figure.png` (the open-team grid's `open-teams-<arena>.png`
+in its place). `--commit` commits each new trial on its own
 (`git commit` in the repository that holds DOCS_DIR), so a machine replaced mid-experiment
 loses at most the trials in progress; `--watch` polls until the results are written (and,
 started beside a new experiment, until it has written its folder).
@@ -86,6 +87,8 @@ def publish(run: Path, docs: Path) -> list[str]:
         for name in RESULT_FILES:
             if (run / name).is_file():
                 shutil.copyfile(run / name, docs / name)
+        for figure in sorted(run.glob("open-teams-*.png")):  # the open-team grid's, per arena
+            shutil.copyfile(figure, docs / figure.name)
         copied.append("results")
     return copied
 

@@ -334,7 +334,8 @@ class Runner:
         """`evaluation.protocol: open-teams`: every trial's learner through contract §6.4's
         grid, in the trials' scenario (which may differ in the team and the arena only),
         each method figured over its seeds (paired where the methods share them), written
-        to OUT/open-teams (results.json, results.md, a figure per arena)."""
+        to OUT (results.json, results.md, open-teams-<arena>.png), where the publisher
+        finds them."""
         from hola_ray.config.scenario import ARENAS
         from hola_ray.evaluation import open_teams
 
@@ -371,11 +372,9 @@ class Runner:
             groups=groups,
             training_seeds={m: [parse_trial(t)[1] for t in ts] for m, ts in groups.items()},
         )
-        out = self.out / "open-teams"
-        out.mkdir(parents=True, exist_ok=True)
-        _atomic_json(out / "results.json", results)
-        written = open_teams.report(results, out)
-        self.say(f"wrote {out / 'results.json'}, " + ", ".join(p.name for p in written))
+        _atomic_json(self.out / "results.json", results)
+        written = open_teams.report(results, self.out)
+        self.say(f"wrote {self.out / 'results.json'}, " + ", ".join(p.name for p in written))
         return results
 
     # ---- phase 3: results -------------------------------------------------------------------
