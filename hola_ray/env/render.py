@@ -82,11 +82,14 @@ def render_frame(config: PursuitConfig, core: BatchedPursuit, b: int) -> np.ndar
 def draw_trajectory(ax: Axes, config: PursuitConfig, traj: Trajectory) -> None:
     """Every drone's path with capture (★) and collision (✕) marks, and the metrics as the
     title, on `ax` (the arena already drawn)."""
+    present = traj.present()
     for i in range(config.n_pursuers):
         colour = _colour(PURSUER_COLOURS, i)
-        xy = traj.pursuer_pos[:, i]
+        xy = np.where(present[:, i, None], traj.pursuer_pos[:, i], np.nan)  # in play only
         ax.plot(xy[:, 0], xy[:, 1], "-", color=colour, lw=1.2, label=f"P{i} {traj.policy_names[i]}")
-        ax.plot(*xy[0], "o", color=colour, ms=6)
+        flying = np.flatnonzero(present[:, i])
+        if flying.size:  # where it started, or joined
+            ax.plot(*xy[flying[0]], "o", color=colour, ms=6)
     for e in range(config.n_evaders):
         colour = _colour(EVADER_COLOURS, e)
         steps = np.flatnonzero(traj.evader_alive[:, e])
@@ -111,8 +114,9 @@ def draw_trajectory(ax: Axes, config: PursuitConfig, traj: Trajectory) -> None:
 
 
 def plot_trajectory(config: PursuitConfig, traj: Trajectory, path: str) -> None:
-    """A PNG of every drone's path with capture (★) and collision (✕) marks."""
-    fig, ax = _figure(config)
+    """A PNG of every drone's path with capture (★) and collision (✕) marks, in the arena
+    the episode was played in."""
+    fig, ax = _figure(traj.scenario(config))
     draw_trajectory(ax, config, traj)
     fig.subplots_adjust(bottom=0.1)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, fontsize=6, frameon=False)
@@ -125,8 +129,9 @@ def animate_trajectory(
     """An animated GIF of the episode (every `stride`-th step); returns the frame count."""
     from PIL import Image
 
-    fig, ax = _figure(config, 4.5)
+    fig, ax = _figure(traj.scenario(config), 4.5)
     n_p, n_e = config.n_pursuers, config.n_evaders
+    present = traj.present()
     trails = [ax.plot([], [], "-", color=_colour(PURSUER_COLOURS, i), lw=1)[0] for i in range(n_p)]
     trails += [ax.plot([], [], "-", color=_colour(EVADER_COLOURS, e), lw=1)[0] for e in range(n_e)]
     pursuers = [
@@ -155,12 +160,13 @@ def animate_trajectory(
     for t in steps:
         lo = max(0, t - tail)
         for i in range(n_p):
-            trails[i].set_data(
-                traj.pursuer_pos[lo : t + 1, i, 0], traj.pursuer_pos[lo : t + 1, i, 1]
-            )
+            seen = present[lo : t + 1, i, None]
+            trail = np.where(seen, traj.pursuer_pos[lo : t + 1, i], np.nan)
+            trails[i].set_data(trail[:, 0], trail[:, 1])
             x, y = traj.pursuer_pos[t, i]
             pursuers[i].set_data([x], [y])
             pursuers[i].set_marker("o" if traj.pursuer_active[t, i] else "X")
+            pursuers[i].set_visible(bool(present[t, i]))
         for e in range(n_e):
             trails[n_p + e].set_data(
                 traj.evader_pos[lo : t + 1, e, 0], traj.evader_pos[lo : t + 1, e, 1]

@@ -37,6 +37,7 @@ def record(
             "pursuer_pos",
             "pursuer_heading",
             "pursuer_active",
+            "pursuer_present",
             "evader_pos",
             "evader_heading",
             "evader_alive",
@@ -68,4 +69,5 @@ def record(
         collisions=collisions,
         metrics=env.episode_metrics(0),
         policy_names=[p.name for p in team],
+        arena=env.arena_of(0),
     )

@@ -21,7 +21,7 @@ from hola_ray.policies.base import Policy
 
 
 def _top_view(ax, config: PursuitConfig, traj: Trajectory, title: str) -> None:
-    draw_arena(ax, config)
+    draw_arena(ax, traj.scenario(config))
     draw_trajectory(ax, config, traj)
     ax.set_title(f"{title}\n{ax.get_title()}", fontsize=9)
 

@@ -435,3 +435,35 @@ def test_a_member_of_an_open_team_is_judged_as_the_papers_team_in_its_own_slots(
     assert (judged.n_pursuers, judged.pursuer_slots, judged.n_evaders) == (3, 5, 2)
     assert (judged.arena, judged.arenas, judged.team.open) == ("paper", (), False)
     assert judged.layout == open_team.layout  # its members read it as they trained
+
+
+def test_a_replay_draws_the_episodes_own_arena_and_only_the_pursuers_in_play(tmp_path):
+    """An episode of drawn arenas and a team that changes, recorded: it names the arena it
+    was played in (the one its seed draws), and a seat waiting to join is out of play in
+    the record until it joins; the drawing and the GIF are made of that arena."""
+    from hola_ray.env.render import animate_trajectory, plot_trajectory
+    from hola_ray.evaluation.trajectory import record
+    from hola_ray.policies import make_policy
+
+    config = PursuitConfig.from_dict(
+        {
+            "arenas": ["bar", "blocks"],
+            "n_pursuers": 5,
+            "horizon": 150,
+            "team": {"present": 3, "changes": 2, "window": [0.05, 0.3]},
+        }
+    )
+    team = [make_policy("greedy", config)] * 5
+    drawn = set()
+    for seed in range(6):
+        traj = record(config, team, seed=seed)
+        core = BatchedPursuit(config, 1)
+        core.reset(seeds=[seed])
+        assert traj.arena == core.arena_of(0) and traj.scenario(config).arena == traj.arena
+        present = traj.present()
+        assert present[0].sum() == 3 and present[:, 0].all()  # seat 0 never leaves
+        drawn.add(traj.arena)
+    assert drawn == {"bar", "blocks"}
+    plot_trajectory(config, traj, str(tmp_path / "t.png"))
+    assert animate_trajectory(config, traj, str(tmp_path / "t.gif"), stride=25) > 1
+    assert (tmp_path / "t.png").stat().st_size > 10_000
