@@ -165,7 +165,7 @@ def grid_scenario(paths: list[Path], evaders: int | None) -> PursuitConfig:
     """The scenario the open-team grid plays: the learners' own (`played_scenario`), which
     may differ in the team and the arena only, with `evaders` where given; the paper's for
     D3QN-G learners alone."""
-    from hola_ray.evaluation.open_teams import cell_scenario
+    from hola_ray.evaluation.open_teams import grid_base
     from hola_ray.policies.registry import played_scenario
 
     scenarios = []
@@ -180,13 +180,10 @@ def grid_scenario(paths: list[Path], evaders: int | None) -> PursuitConfig:
             scenarios.append(scenario)
     if not scenarios:
         return PursuitConfig(n_evaders=evaders or 2)
-    cells = [cell_scenario(s, "paper", "zero-shot", 3) for s in scenarios]
-    if any(cell != cells[0] for cell in cells):
-        raise EvaluationError(
-            "the learners were trained in scenarios that differ beyond the team and the "
-            "arena (evaders, speeds, horizon…): evaluate them separately, or give --evaders"
-        )
-    return scenarios[0]
+    try:
+        return grid_base(scenarios)
+    except ValueError as err:
+        raise EvaluationError(f"{err}: evaluate them separately, or give --evaders") from err
 
 
 def open_teams(args: argparse.Namespace) -> int:

@@ -222,7 +222,8 @@ class TeamChangeConfig:
     min_team: int = 1
     """no leave takes the pursuers flying (in play, not crashed) below this"""
     fixed: int = 1
-    """seats 0..fixed−1 start in play and never leave: the seats a learner controls"""
+    """seats 0..fixed−1 start in play and never leave: the seats a learner controls (one at
+    least where the team changes)"""
 
     def __post_init__(self) -> None:
         for name, low in (("changes", 0), ("min_team", 1), ("fixed", 0)):
@@ -252,19 +253,34 @@ class TeamChangeConfig:
             return None
         return self.present if isinstance(self.present, tuple) else (self.present, self.present)
 
+    def start_range(self, n_pursuers: int) -> tuple[int, int]:
+        """(low, high) of the pursuers in play at the start of an episode of `n_pursuers`
+        seats."""
+        return self.present_range or (n_pursuers, n_pursuers)
+
     def sizes(self, n_pursuers: int) -> tuple[int, ...]:
-        """The team sizes of two or more an episode of `n_pursuers` seats is flown in: all
-        of them for the paper's team; from the smallest start (or `min_team`, where
-        teammates leave) to the largest start (or every seat, where they join)."""
-        lo, hi = self.present_range or (n_pursuers, n_pursuers)
-        if self.changes > 0:
-            lo, hi = min(lo, self.min_team), n_pursuers
-        return tuple(range(max(lo, 2), max(hi, 2) + 1))
+        """The sizes the team in play can have in an episode of `n_pursuers` seats: the
+        paper's team alone where it is closed; where it changes, of two or more, from the
+        smallest start less a leave at each change (none below `min_team` or the fixed
+        seats) to the largest start plus a join at each (none beyond the seats)."""
+        lo, hi = self.start_range(n_pursuers)
+        if not self.open:
+            return (n_pursuers,)
+        lo = min(lo, max(lo - self.changes, self.min_team, self.fixed))
+        hi = min(n_pursuers, hi + self.changes)
+        return tuple(range(max(lo, 2), max(hi, 2) + 1)) if n_pursuers > 1 else (1,)
 
     @property
     def open(self) -> bool:
         """The team may differ from all pursuers in play throughout."""
         return self.changes > 0 or self.present is not None
+
+    @property
+    def learner_seats(self) -> tuple[int, ...] | None:
+        """The learner's seats in every episode of a team that changes within it: the
+        fixed ones, 0 … fixed − 1, which never leave (contract §6.3); None for a team kept
+        whole, where the learner takes one uniformly random seat."""
+        return tuple(range(self.fixed)) if self.open else None
 
 
 @dataclass(frozen=True)
@@ -449,6 +465,8 @@ class PursuitConfig:
             lo, hi = team.present_range
             ok = low <= lo and hi <= n
             require(ok, "team.present", f"in [{low}, n_pursuers = {n}]", team.present)
+        if team.open:  # the learner's seats are the fixed ones: a team that changes has one
+            require(team.fixed >= 1, "team.fixed", ">= 1 where the team changes", team.fixed)
 
     def _resolve_arena(self) -> None:
         """The arena's name and its obstacles, each from the other where unset: obstacles
@@ -571,12 +589,14 @@ class PursuitConfig:
         a team of its own copies (§5.1): itself for a fixed team of 3 in one arena; for a
         team that changes, of another size or in drawn arenas (§6), the paper's 3 pursuers
         against its evaders in the paper's arena, observed in its own slots: the contract's
-        bars are for 3 pursuers only."""
-        if not self.team.open and not self.arenas and self.n_pursuers == 3:
-            return self
+        bars are for 3 pursuers only. A scenario of fewer than 3 slots is judged in its own
+        team size (as many as its slots)."""
+        own = not self.team.open and not self.arenas
+        if own and (self.n_pursuers == 3 or self.pursuer_slots < 3):
+            return self  # below 3 slots: its own team, the only one it reads
         return dataclasses.replace(
             self.in_arena("paper"),
-            n_pursuers=3,
+            n_pursuers=min(3, self.pursuer_slots),
             obs_pursuers=self.pursuer_slots,
             obs_evaders=self.evader_slots,
             team=TeamChangeConfig(),

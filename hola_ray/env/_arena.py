@@ -109,6 +109,7 @@ class Arena(NamedTuple):
     ppresent: np.ndarray  # [B, n_p] bool, in play (not landed, not waiting to join)
     pwaiting: np.ndarray  # [B, n_p] bool, not yet in play: may join
     change_t: np.ndarray  # [B, K] int64, the steps of the team's changes (K ≥ 1)
+    team_rng: np.ndarray  # [B, K + 1] uint64, the team's streams: its start, each change
     layout: np.ndarray  # [B] int64, the episode's layout: an index of Params.rects
 
 
@@ -176,11 +177,11 @@ def pack_params(config: PursuitConfig) -> Params:
             int(config.observe_headings),
             config.pursuer_slots,
             config.evader_slots,
-            (config.team.present_range or (config.n_pursuers,) * 2)[0],
+            config.team.start_range(config.n_pursuers)[0],
             config.team.changes,
             config.team.min_team,
             config.team.fixed,
-            (config.team.present_range or (config.n_pursuers,) * 2)[1],
+            config.team.start_range(config.n_pursuers)[1],
             len(config.arenas),
         ],
         dtype=np.int64,

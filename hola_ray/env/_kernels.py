@@ -93,10 +93,11 @@ def reset_episode(b, p, s):
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
      t, done, collided, captures, ep_return, rng, pvel, pcmd, ppresent, pwaiting,
-     change_t, layout) = s
+     change_t, team_rng, layout) = s
     # fmt: on
-    if ip[I_ARENAS] > 1:  # a layout per episode, drawn first (contract §6.1)
-        layout[b] = _rng.integer(rng, b, 0, ip[I_ARENAS] - 1)
+    if ip[I_ARENAS] > 1:  # a layout per episode (contract §6.1), drawn beside the stream:
+        # the episode then starts and plays as it would in that arena alone, seeded alike
+        layout[b] = _rng.integer_of(_rng.side(rng, b, _rng.LAYOUT), 0, ip[I_ARENAS] - 1)
     _place(rng, b, ppos[b], ppos.shape[1], spawn[0], fp[F_SPAWN_SEP])
     _place(rng, b, epos[b], epos.shape[1], spawn[1], fp[F_SPAWN_SEP])
     for i in range(ppos.shape[1]):
@@ -129,16 +130,21 @@ def reset_episode(b, p, s):
 def _open_team(b, ip, fp, s):
     """Episode b's team as it starts, and when it will change (contract §6.3): all but
     `present` of the seats beyond the fixed ones wait out of play (`present` itself drawn
-    in its range where it is one), drawn from the episode's stream; the changes' steps are
-    drawn in the window of the horizon, in order."""
+    in its range where it is one); the changes' steps are drawn in the window of the
+    horizon, in order. The team's draws are the episode's but beside its stream (its start
+    is drawn as the whole team's), and each change draws from a stream of its own, seeded
+    here: which teammate leaves or where one joins does not hang on how the pursuers flew
+    (only on who may leave), so two policies meet the same changes."""
     n_p = s.ppos.shape[1]
+    team = s.team_rng[b]  # [0]: the start and the steps; [1 + k]: the k-th change's
+    team[0] = _rng.side(s.rng, b, _rng.TEAM)
     present = ip[I_TEAM_PRESENT]
     if ip[I_TEAM_PRESENT_HIGH] > present:  # a team size per episode
-        present = _rng.integer(s.rng, b, present, ip[I_TEAM_PRESENT_HIGH])
+        present = _rng.integer(team, 0, present, ip[I_TEAM_PRESENT_HIGH])
     waiting = n_p - present
     free = n_p - ip[I_TEAM_FIXED]
     for k in range(waiting):  # the k-th waiting seat: drawn among the free seats in play
-        pick = _rng.integer(s.rng, b, 0, free - k - 1)
+        pick = _rng.integer(team, 0, 0, free - k - 1)
         for i in range(ip[I_TEAM_FIXED], n_p):
             if s.ppresent[b, i]:
                 if pick == 0:
@@ -151,12 +157,14 @@ def _open_team(b, ip, fp, s):
     lo = max(1, int(fp[F_TEAM_FROM] * horizon))
     hi = max(lo, int(fp[F_TEAM_TO] * horizon))
     for k in range(ip[I_TEAM_CHANGES]):
-        when = _rng.integer(s.rng, b, lo, hi)
+        when = _rng.integer(team, 0, lo, hi)
         j = k
         while j > 0 and s.change_t[b, j - 1] > when:  # insertion: the steps in order
             s.change_t[b, j] = s.change_t[b, j - 1]
             j -= 1
         s.change_t[b, j] = when
+    for k in range(ip[I_TEAM_CHANGES]):
+        team[1 + k] = _rng.next_u64(team, 0)
 
 
 @njit(cache=True, parallel=True)
@@ -177,7 +185,7 @@ def observe(b, p, s, obs):
     # fmt: off
     (ppos, phead, pactive, epos, ehead, ealive, wander_left, wander_dir, slip, slip_dir,
      t, done, collided, captures, ep_return, rng, pvel, pcmd, ppresent, pwaiting,
-     change_t, layout) = s
+     change_t, team_rng, layout) = s
     # fmt: on
     rects, discs = statics(b, p, s)
     n_p = ppos.shape[1]
@@ -410,14 +418,15 @@ def _collisions(b, p, s, reward, disabled):
 def _share(b, s, reward, disabled):
     """The common reward (`RewardConfig.shared`): every pursuer active at the start of the
     step (those disabled by it included) receives the team's reward for the step, the sum
-    of every pursuer's own terms, divided by n_p."""
+    of every pursuer's own terms, divided by the pursuers in play (n_p in the paper's team)."""
     n_p = s.ppos.shape[1]
-    team = 0.0
+    team, in_play = 0.0, 0
     for i in range(n_p):
         team += reward[b, i]
+        in_play += s.ppresent[b, i]
     for i in range(n_p):
         if s.pactive[b, i] or disabled[b, i]:
-            reward[b, i] = team / n_p
+            reward[b, i] = team / max(in_play, 1)
 
 
 @njit(cache=True)
@@ -425,9 +434,10 @@ def _change_team(b, p, s):
     """The team's changes due at the end of this step: a teammate in play, not crashed and
     not in a fixed seat leaves (while more than `min_team` fly), or a waiting one joins at
     the pursuers' spawn, heading +y; a coin from the episode's stream decides where both
-    can happen."""
+    can happen; the coin, the pick and the joiner's spot from the change's own stream."""
     ip = p.ip
     n_p = s.ppos.shape[1]
+    team = s.team_rng[b]
     for k in range(s.change_t.shape[1]):
         if s.change_t[b, k] != s.t[b]:
             continue
@@ -439,8 +449,8 @@ def _change_team(b, p, s):
         can_leave = leavers > 0 and flying > ip[I_TEAM_MIN]
         if not can_leave and joiners == 0:
             continue
-        leave = can_leave and (joiners == 0 or _rng.uniform(s.rng, b) < 0.5)
-        pick = _rng.integer(s.rng, b, 0, (leavers if leave else joiners) - 1)
+        leave = can_leave and (joiners == 0 or _rng.uniform(team, 1 + k) < 0.5)
+        pick = _rng.integer(team, 1 + k, 0, (leavers if leave else joiners) - 1)
         for i in range(n_p):
             eligible = (s.pactive[b, i] and i >= ip[I_TEAM_FIXED]) if leave else s.pwaiting[b, i]
             if not eligible:
@@ -452,18 +462,18 @@ def _change_team(b, p, s):
                 s.pactive[b, i] = False
                 s.ppresent[b, i] = False
             else:
-                _join(b, i, p, s)
+                _join(b, i, p, s, team, 1 + k)
             break
 
 
 @njit(cache=True)
-def _join(b, i, p, s):
+def _join(b, i, p, s, stream, k):
     """Seat i comes into play at a point of the pursuers' spawn region, clear of the
-    pursuers in play by the spawn separation where 1,000 draws find one."""
+    pursuers in play by the spawn separation where 1,000 draws (from `stream[k]`) find one."""
     fp, region = p.fp, p.spawn[0]
     for _ in range(1000):
-        x = region[0] + _rng.uniform(s.rng, b) * (region[1] - region[0])
-        y = region[2] + _rng.uniform(s.rng, b) * (region[3] - region[2])
+        x = region[0] + _rng.uniform(stream, k) * (region[1] - region[0])
+        y = region[2] + _rng.uniform(stream, k) * (region[3] - region[2])
         clear = True
         for j in range(s.ppos.shape[1]):
             if (

@@ -10,6 +10,10 @@ _GAMMA = np.uint64(0x9E3779B97F4A7C15)
 _MUL1 = np.uint64(0xBF58476D1CE4E5B9)
 _MUL2 = np.uint64(0x94D049BB133111EB)
 _SALT = np.uint64(0x5851F42D4C957F2D)
+LAYOUT = np.uint64(0x2545F4914F6CDD1D)
+"""The salt of an episode's arena draw (`side`)."""
+TEAM = np.uint64(0x9FB21C651E98DF25)
+"""The salt of an episode's team draws (`side`)."""
 
 
 @njit(cache=True, inline="always")
@@ -36,6 +40,21 @@ def uniform(rng, b):
 def integer(rng, b, low, high):
     """An integer in [low, high] (both inclusive) from stream b."""
     return low + np.int64(uniform(rng, b) * (high - low + 1))
+
+
+@njit(cache=True, inline="always")
+def side(rng, b, salt):
+    """A stream state derived from stream b's and a salt, stream b left as it is: draws of
+    their own beside the stream's, which then play on as they would without them."""
+    return _mix(rng[b] ^ salt)
+
+
+@njit(cache=True, inline="always")
+def integer_of(bits, low, high):
+    """An integer in [low, high] (both inclusive) from 64 random bits."""
+    return low + np.int64(
+        np.float64(bits >> np.uint64(11)) * (1.0 / 9007199254740992.0) * (high - low + 1)
+    )
 
 
 def seed_state(seeds: np.ndarray) -> np.ndarray:

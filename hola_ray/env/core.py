@@ -63,6 +63,7 @@ class BatchedPursuit:
             ppresent=np.zeros((B, n_p), dtype=bool),
             pwaiting=np.zeros((B, n_p), dtype=bool),
             change_t=np.zeros((B, max(config.team.changes, 1)), dtype=np.int64),
+            team_rng=np.zeros((B, max(config.team.changes, 1) + 1), dtype=np.uint64),
             layout=np.zeros(B, dtype=np.int64),
         )
         self._out = _kernels.StepOut(

@@ -59,16 +59,16 @@ _ZERO_SHOT: dict[str, tuple[str, Callable[..., np.ndarray]]] = {
         lambda r, seat, n_p: r.length.astype(np.float64),
     ),
     "reward": (
-        "the mean per-pursuer return (AT-Drone's REW)",
-        lambda r, seat, n_p: r.team_return / n_p,
+        "the mean per-pursuer return over the pursuers in play (AT-Drone's REW)",
+        lambda r, seat, n_p: r.team_return / np.maximum(r.played.sum(axis=1), 1),
     ),
     "learner_crash": (
         "the learner's own seat crashed (one of its seats, where it plays several)",
         lambda r, seat, n_p: (r.crashed & seat).any(axis=1).astype(np.float64),
     ),
     "teammate_crash": (
-        "the share of teammate seats that crashed",
-        lambda r, seat, n_p: _share(r.crashed & ~seat, ~seat),
+        "the share of teammate seats in play that crashed",
+        lambda r, seat, n_p: _share(r.crashed & ~seat, r.played & ~seat),
     ),
 }
 

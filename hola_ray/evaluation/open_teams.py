@@ -46,7 +46,6 @@ from hola_ray.evaluation.pools import load_pool
 from hola_ray.evaluation.report import POOL_LABELS
 from hola_ray.evaluation.scale import CEILINGS, FLOOR, load_references, play_references
 from hola_ray.evaluation.teams import play
-from hola_ray.policies.adapter import fitted
 from hola_ray.policies.base import Policy
 
 MODES = ("zero-shot", "open")
@@ -79,6 +78,19 @@ def cell_scenario(base: PursuitConfig, arena: str, mode: str, size: int) -> Purs
         obs_evaders=base.evader_slots,
         team=open_team(size) if mode == "open" else TeamChangeConfig(),
     )
+
+
+def grid_base(scenarios: Sequence[PursuitConfig]) -> PursuitConfig:
+    """The scenario the grid plays learners trained in `scenarios` in (`cell_scenario`'s
+    `base`): the first, where they differ in the team and the arena only; ValueError where
+    they differ beyond (evaders, speeds, horizon, sensing…), which one grid cannot hold."""
+    cells = [cell_scenario(s, "paper", "zero-shot", 3) for s in scenarios]
+    if any(cell != cells[0] for cell in cells):
+        raise ValueError(
+            "the learners were trained in scenarios that differ beyond the team and the "
+            "arena (evaders, speeds, horizon, sensing…)"
+        )
+    return scenarios[0]
 
 
 def _row(intervals: Mapping[str, Any]) -> dict[str, Any]:
@@ -257,17 +269,11 @@ def run_protocol(
 
 def learner_loader(path: str | Path) -> Callable[[PursuitConfig], Policy]:
     """A learner file or run directory as a function of a cell's scenario: the policy built
-    in the scenario it was trained in, fitted to the cell's (`fitted`)."""
-    from hola_ray.policies.registry import load_policy, played_scenario
+    in the scenario it was trained in, fitted to the cell's (`load_fitted`)."""
+    from hola_ray.policies.registry import load_fitted, played_scenario
 
-    trained = played_scenario(path)
-
-    def make(config: PursuitConfig) -> Policy:
-        if trained is None:  # D3QN-G: it plays any scenario
-            return load_policy(path, config)
-        return fitted(config, load_policy(path, trained))
-
-    return make
+    trained = played_scenario(path)  # read once; None for a D3QN-G export
+    return lambda config: load_fitted(path, config, trained)
 
 
 # ---- the report -----------------------------------------------------------------------------

@@ -30,9 +30,9 @@ from typing import Any
 from hola_ray import homes
 from hola_ray.config.scenario import PursuitConfig
 from hola_ray.homes import MANIFEST
-from hola_ray.policies.adapter import fitted, trained_scenario
+from hola_ray.policies.adapter import trained_scenario
 from hola_ray.policies.base import Policy
-from hola_ray.policies.registry import load_policy, make_policy
+from hola_ray.policies.registry import load_fitted, make_policy
 
 POOLS_DIR = homes.POOLS
 RUNS_DIR = homes.RUNS / "pools"
@@ -144,17 +144,13 @@ def load_member(folder: Path, mid: str, entry: dict[str, Any], config: PursuitCo
     scenario = entry["scenario"]
     if kind not in ("ppo", "d3qn"):
         raise PoolError(f"pool {folder.name}: member {mid} has an unknown kind {kind!r}")
-    evaders = scenario["n_evaders"]
-    if kind == "d3qn":
-        # D3QN-G reads the first evader only and plays Greedy once it is caught (contract §3):
-        # it plays any number of evaders as it is
-        evaders = config.evader_slots
-    trained = trained_scenario(config, scenario["n_pursuers"], evaders)
+    # D3QN-G reads the first evader only and plays Greedy once it is caught (contract §3):
+    # it plays any number of evaders as it is (`load_fitted`)
+    trained = trained_scenario(config, scenario["n_pursuers"], scenario["n_evaders"])
     try:
-        policy = load_policy(folder / entry["file"], trained, name=entry["name"])
+        return load_fitted(folder / entry["file"], config, trained, name=entry["name"])
     except ValueError as err:
         raise PoolError(f"pool {folder.name}: member {mid}: {err}") from err
-    return fitted(config, policy)
 
 
 def load_validation(pool: str | Path, config: PursuitConfig) -> dict[str, Policy]:

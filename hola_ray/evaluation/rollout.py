@@ -48,6 +48,7 @@ class RolloutResult:
     team_return: np.ndarray  # [N] float: summed return of all pursuers
     captures: np.ndarray  # [N] int: evaders captured
     crashed: np.ndarray  # [N, n_p] bool: the pursuer in that seat collided (and dropped out)
+    played: np.ndarray  # [N, n_p] bool: the seat was in play at some step (all of a whole team)
 
     @property
     def episodes(self) -> int:
@@ -147,6 +148,7 @@ def _play(
         if mask.any():
             policy.reset(np.ones(int(mask.sum()), dtype=bool))
     stack, stacked = _stack(policies, masks) if batched else (None, [])
+    played = env.pursuer_present.copy()
     slot = np.full(assignment.shape, -1)  # [B, n_p] the seat's actor in the stack, or −1
     for k, policy_index in enumerate(stacked):
         slot[masks[policy_index]] = k
@@ -165,7 +167,14 @@ def _play(
         if stack is not None:
             seats = (slot >= 0) & running
             actions[seats] = stack.act(obs[seats], slot[seats])
+        waiting = env.pursuer_waiting & running
         obs = env.step(actions, fly(actions) if fly is not None else None).obs
+        joined = waiting & env.pursuer_present  # a teammate that came into play: its
+        if joined.any():  # policy starts its episode there (a D3QN-G's pair drawn afresh)
+            for policy, mask in zip(policies, masks, strict=True):
+                if (joined & mask).any():
+                    policy.reset(joined[mask])
+        played |= env.pursuer_present
     return (
         env.success.copy(),
         env.collided.copy(),
@@ -173,6 +182,7 @@ def _play(
         env.episode_return.sum(axis=1),
         env.captures.copy(),
         env.pursuer_present & ~env.pursuer_active,  # crashed in play (not landed or waiting)
+        played,
     )
 
 

@@ -38,9 +38,9 @@ from hola_ray.config.scenario import PursuitConfig
 from hola_ray.evaluation.compare import figures
 from hola_ray.evaluation.pools import POOLS_DIR, PoolError, load_validation
 from hola_ray.evaluation.teams import play
-from hola_ray.policies.adapter import fitted, trained_scenario
+from hola_ray.policies.adapter import trained_scenario
 from hola_ray.policies.base import Policy
-from hola_ray.policies.registry import load_policy, make_policy
+from hola_ray.policies.registry import load_fitted, load_policy, make_policy
 from hola_ray.provenance import commit_id
 
 REFERENCE_DIR = POOLS_DIR / "reference"
@@ -77,7 +77,7 @@ def load_references(config: PursuitConfig, folder: Path = REFERENCE_DIR) -> dict
         if sizes != (config.n_pursuers, config.n_evaders):
             continue
         trained = trained_scenario(config, *sizes)  # observed in other slots: adapted
-        out[name] = fitted(config, load_policy(folder / entry["file"], trained, entry["name"]))
+        out[name] = load_fitted(folder / entry["file"], config, trained, entry["name"])
     return out
 
 

@@ -36,12 +36,6 @@ def draw_teams(
     return teams
 
 
-def learner_seats(config: PursuitConfig) -> int:
-    """`draw_teams`' `fixed` for an episode of `config`: the learner's fixed seats where the
-    team changes (at least seat 0), else 0 (one random seat)."""
-    return max(config.team.fixed, 1) if config.team.open else 0
-
-
 def partner_combinations(teams: np.ndarray, members: int) -> np.ndarray:
     """[E] an id per episode of the members beside the learner, as a multiset (seat order
     and the learner's seats left out): the bootstrap's strata."""
@@ -60,7 +54,8 @@ def play(
     n_p = config.n_pursuers
     for s in seeds:
         rng = np.random.default_rng(np.random.SeedSequence([int(s), 7]))
-        teams = draw_teams(rng, episodes, n_p, len(members), learner_seats(config))
+        fixed = len(config.team.learner_seats or ())  # 0: one random seat
+        teams = draw_teams(rng, episodes, n_p, len(members), fixed)
         result = rollout(config, [learner, *members], episodes, assignment=teams, seed=int(s))
         seats = teams == 0  # the learner is candidate 0, in one seat or its fixed ones
         for name, values in zero_shot_values(result, seats, n_p).items():

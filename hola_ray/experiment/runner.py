@@ -347,16 +347,10 @@ class Runner:
                 "open-team grid plays one; evaluate them in separate experiments"
             )
         # the grid's scenario: the trials' own but for the team, the arena and the reward
-        cells = {
-            t: open_teams.cell_scenario(self.configs[t].env, "paper", "zero-shot", 3)
-            for t in trials
-        }
-        base = self.configs[trials[0]].env
-        if any(cell != cells[trials[0]] for cell in cells.values()):
-            raise RuntimeError(
-                "the trials train in scenarios that differ beyond the team and the arena "
-                "(speeds, horizon, sensing…): evaluate them in separate experiments"
-            )
+        try:
+            base = open_teams.grid_base([self.configs[t].env for t in trials])
+        except ValueError as err:
+            raise RuntimeError(f"{err}: evaluate them in separate experiments") from err
         settings = self.exp.evaluation
         groups = {m: [t for t in trials if parse_trial(t)[0] == m] for m in self.exp.methods}
         results = open_teams.run_protocol(

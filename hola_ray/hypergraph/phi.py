@@ -11,10 +11,12 @@ value or scaling them all by a positive factor, so negative returns need no spec
 All values equal (or a single node) gives the uniform φ.
 
 kind="myerson": x = Myerson value (HOLA-Drone); kind="mean_reward": x = mean weight of the
-node's hyperedges (the HOLA-Drone_R ablation). As MV_i = (d_i / l)·(mean weight of i's
-hyperedges), d_i the number of i's hyperedges, the two kinds give the same φ whenever every
-node has the same degree, G_0 (every l-set of the initial members) among them
-(results/NOTEBOOK.md, "Why `hola_r` trained exactly like `hola`").
+node's hyperedges (the HOLA-Drone_R ablation), each hyperedge T's as w(T)·l/|T| where
+sizes differ (contract §6: the summed return grows with the team; a team of l counts as
+is). With hyperedges of the one size l, MV_i = (d_i / l)·(mean weight of i's hyperedges),
+d_i the number of i's hyperedges, so the two kinds give the same φ whenever every node has
+the same degree, G_0 (every l-set of the initial members) among them (results/NOTEBOOK.md,
+"Why `hola_r` trained exactly like `hola`"); with several sizes MV_i = Σ_{T∋i} w(T)/|T|.
 
 A node with no hyperedge yet takes the lowest value among the nodes that have one, so it
 is among the most sampled; when no node has a hyperedge, φ is uniform.
@@ -31,9 +33,10 @@ def node_values(g: HyFoG, kind: str = "myerson") -> dict[NodeId, float | None]:
     degree = dict.fromkeys(g.nodes, 0)
     total = dict.fromkeys(g.nodes, 0.0)
     for nodes, weight in g.weights():
+        scaled = weight if len(nodes) == g.l else weight * g.l / len(nodes)
         for node in nodes:
             degree[node] += 1
-            total[node] += weight
+            total[node] += scaled
     if kind == "myerson":
         mv = myerson_value(g, "closed")
         return {v: (mv[v] if degree[v] else None) for v in g.nodes}

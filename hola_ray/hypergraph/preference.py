@@ -6,19 +6,32 @@ from hola_ray.hypergraph.hyfog import HyFoG, Hyperedge, NodeId
 
 
 def preference_hypergraph(g: HyFoG) -> dict[NodeId, Hyperedge]:
-    """Each node's out-hyperedge: its best incident hyperedge by weight.
+    """Each node's out-hyperedge: its best incident hyperedge by weight per member.
 
-    Ties are broken deterministically: among hyperedges of equal weight the one with more
-    episodes behind it wins, then the one whose members, in insertion order, come first
+    The weight is the team's summed return, which grows with the team: hyperedges of
+    several sizes (contract §6) are compared by weight per member, w(T)/|T|, else the
+    largest teams would be every node's best; those of one size by weight, as the paper
+    has it. Ties are broken deterministically: among equals the one with more episodes
+    behind it wins, then the one whose members, in insertion order, come first
     (lexicographic on their insertion ranks). A node with no hyperedge has no out-edge.
     """
     best: dict[NodeId, Hyperedge] = {}
     for edge in g.edges:  # sorted by insertion ranks, so the first of equals is kept
         for node in edge.nodes:
             held = best.get(node)
-            if held is None or (edge.weight, edge.episodes) > (held.weight, held.episodes):
+            if held is None or _better(edge, held):
                 best[node] = edge
     return best
+
+
+def _better(edge: Hyperedge, held: Hyperedge) -> bool:
+    """`edge` beats `held`: more weight per member (cross-multiplied: exact for one size),
+    then more episodes."""
+    mine = edge.weight * len(held.nodes)
+    theirs = held.weight * len(edge.nodes)
+    if len(edge.nodes) == len(held.nodes):
+        mine, theirs = edge.weight, held.weight
+    return (mine, edge.episodes) > (theirs, held.episodes)
 
 
 def in_degree(g: HyFoG) -> dict[NodeId, int]:

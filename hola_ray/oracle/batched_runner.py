@@ -66,7 +66,7 @@ class _Episode:
     """One sub-environment's episode while it runs: its id, who plays each slot, and where
     its current chunk began (env step within the episode, row of this sample's buffers)."""
 
-    __slots__ = ("id_", "seed", "modules", "env_t_started", "agent_t_started", "row", "live")
+    __slots__ = ("id_", "seed", "modules", "env_t_started", "agent_t_started", "row")
 
     def __init__(self, id_: str, seed: int, modules: list[str], n_p: int) -> None:
         self.id_ = id_
@@ -75,7 +75,6 @@ class _Episode:
         self.env_t_started = 0
         self.agent_t_started = np.zeros(n_p, dtype=np.int64)
         self.row = 0
-        self.live = np.ones(n_p, dtype=bool)  # agents still acting at the chunk's start
 
 
 class BatchedEnvRunner(MultiAgentEnvRunner):
@@ -151,7 +150,6 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             stub = SimpleNamespace(id_=eid)
             modules = [mapping(agent, stub) for agent in self.agents]
             self._episodes[b] = _Episode(eid, int(seed), modules, len(self.agents))
-            self._episodes[b].live = self.core.pursuer_active[b].copy()  # a short team
             for i, mid in enumerate(modules):
                 if mid not in self._module_ids:
                     self._module_ids.append(mid)
@@ -236,7 +234,6 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             acted = buf.live[rows, b].sum(axis=0)
             e.agent_t_started += acted
             e.env_t_started += s - e.row
-            e.live = self.core.pursuer_active[b].copy()
         return chunks
 
     def _actor(self, module) -> MLPPolicy | None:

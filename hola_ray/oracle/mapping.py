@@ -7,17 +7,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from hola_ray.config.scenario import PursuitConfig
-
 LEARNER = "learner"
 """The module id of the policy the Oracle trains."""
-
-
-def learner_seats(env: PursuitConfig) -> tuple[int, ...] | None:
-    """The learner's seats in every episode of a team that changes within it: its fixed
-    seats, 0 … team.fixed − 1 (at least seat 0), which never leave (contract §6.3); None for
-    a team kept whole, where the learner takes one uniformly random seat."""
-    return tuple(range(max(env.team.fixed, 1))) if env.team.open else None
 
 
 def member_module(slot: int) -> str:

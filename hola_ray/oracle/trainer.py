@@ -37,7 +37,7 @@ from hola_ray.env.pettingzoo_env import PursuitEnv
 from hola_ray.evaluation.probe import reference_observations
 from hola_ray.oracle.batched_runner import BatchedEnvRunner
 from hola_ray.oracle.learner import OracleLearner
-from hola_ray.oracle.mapping import LEARNER, PartnerMapping, learner_seats, member_module
+from hola_ray.oracle.mapping import LEARNER, PartnerMapping, member_module
 from hola_ray.oracle.module import FrozenPartnerModule, PursuitCatalog, PursuitPPOModule
 from hola_ray.oracle.overlap import OverlappedPPO
 from hola_ray.oracle.stats import TrainStats
@@ -123,13 +123,13 @@ class Oracle:
                 learner=not self.mep,
                 whole_team=seating.mep_self_play,
                 # a team that changes keeps its fixed seats in play throughout: the learner's
-                learner_seats=learner_seats(env),
+                learner_seats=env.team.learner_seats,
             )
         self.trained = self.members if self.mep else [LEARNER]
         self.counts_samples = config.budget == "learner_samples" and not self.mep
         """`train(n)` counts the learner's own transitions (not env steps); MEP pre-training
         (every member trained) counts env steps"""
-        fixed = learner_seats(env)
+        fixed = env.team.learner_seats
         self.seats = n_p if seating.self_play else (len(fixed) if fixed else 1)
         """seats the trained learner plays per env step: a learner_samples batch of
         `train_batch` transitions spans train_batch / seats env steps"""

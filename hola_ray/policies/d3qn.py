@@ -55,7 +55,13 @@ def dacoop_state(obs: np.ndarray, layout: ObsLayout, far: float) -> np.ndarray:
 
 
 def state_dim(config: PursuitConfig) -> int:
-    return 5 + 2 * (config.n_pursuers - 1)
+    """The DACOOP-A state's size in `config`'s observation (its teammate slots)."""
+    return 5 + 2 * (config.pursuer_slots - 1)
+
+
+def state_pursuers(export: Mapping[str, Any]) -> int:
+    """The team a D3QN-G export was trained in: the pursuers its state holds."""
+    return (int(export["state_dim"]) - 5) // 2 + 1
 
 
 class PairActor:

@@ -284,11 +284,11 @@ def team_entry(config: PursuitConfig) -> dict[str, Any]:
     """The teams and arena a policy of this scenario plays (contract §6): its observation's
     slots hold any team up to them, the missing teammates read as unobserved and the
     missing evaders as captured; the sizes and arena it was trained with."""
-    trained = config.team.present_range or (config.n_pursuers, config.n_pursuers)
+    trained = config.team.sizes(config.n_pursuers)
     return {
         "pursuers": [1, config.pursuer_slots],
         "evaders": [1, config.evader_slots],
-        "trained_pursuers": list(trained),
+        "trained_pursuers": [trained[0], trained[-1]],
         "trained_evaders": config.n_evaders,
         "team_changes": config.team.changes,
         "arena": config.arena,
@@ -296,7 +296,7 @@ def team_entry(config: PursuitConfig) -> dict[str, Any]:
         "meaning": (
             "teams of `pursuers` (the learner among them) against `evaders` fill the "
             "observation's slots, the missing teammates as unobserved and the missing "
-            "evaders as captured; trained with teams of `trained_pursuers` against "
+            "evaders as captured; trained with teams in play of `trained_pursuers` against "
             "`trained_evaders` in `arenas` (drawn per episode where several; `arena` the "
             "first), the team changing `team_changes` times an episode"
         ),

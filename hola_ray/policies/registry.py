@@ -119,6 +119,31 @@ def played_scenario(path: str | Path) -> PursuitConfig | None:
     return None if trained is None else trained.played()
 
 
+def load_fitted(
+    path: str | Path,
+    config: PursuitConfig,
+    trained: PursuitConfig | None = None,
+    name: str | None = None,
+) -> Policy:
+    """A learned policy (a run directory or an export file) playing `config`, whatever its
+    team and slots (contract §6.2): built in the scenario it was trained in (`trained`,
+    else the file's own: `played_scenario`) and fitted to `config`'s observation through
+    the adapter (`fitted`). A D3QN-G export reads the first evader only: it is built in
+    `config` with its own team's slots. The one rule the pools, the reference seats, the
+    evaluation's learners and flight load learned policies by."""
+    from hola_ray.policies.adapter import fitted
+    from hola_ray.policies.adapter import trained_scenario as observed_as
+    from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
+    from hola_ray.policies.d3qn import state_pursuers
+
+    export = load_export(Path(path))
+    if export.get("format") == D3QN_FORMAT:
+        trained = observed_as(config, state_pursuers(export), config.evader_slots)
+    elif trained is None:
+        trained = played_scenario(path)
+    return fitted(config, load_policy(path, trained, name))
+
+
 def load_policy(path: str | Path, config: PursuitConfig, name: str | None = None) -> Policy:
     """A learned policy from a run directory or an export file: an `MLPPolicy` export or a
     D3QN-G export, told apart by the export's format tag."""

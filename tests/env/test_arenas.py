@@ -213,6 +213,32 @@ def test_teammates_leave_and_join_at_drawn_steps_within_the_rules():
     assert env.pursuer_present[:, 0].all()
 
 
+def test_the_team_is_drawn_beside_the_flight():
+    """The team's draws have streams of their own: an open team starts where the whole team
+    would, seeded alike, and which teammate leaves or joins does not hang on how the
+    pursuers flew: two ways of flying meet the same teams wherever nobody has crashed."""
+    config, circling = _team_env("open", present=3, changes=4, min_team=2, window=[0.0, 0.05])
+    whole = BatchedPursuit(dataclasses.replace(config, team=TeamChangeConfig()), 64)
+    other = BatchedPursuit(config, 64)
+    for env in (circling, whole, other):
+        env.reset(seeds=np.arange(64))
+    for key in INITIAL_STATE_KEYS:
+        np.testing.assert_array_equal(getattr(circling, key), getattr(whole, key))
+    np.testing.assert_array_equal(circling.pursuer_present, other.pursuer_present)
+    clean = np.ones(64, dtype=bool)
+    compared = 0
+    for _ in range(int(0.05 * config.horizon) + 1):  # the changes come before crashes do
+        before = circling.pursuer_present.copy()
+        circling.step(np.full((64, 5), 0.55))
+        other.step(np.full((64, 5), 0.45))
+        for env in (circling, other):
+            clean &= ~env.done & (env.pursuer_active == env.pursuer_present).all(axis=1)
+        np.testing.assert_array_equal(circling.pursuer_present[clean], other.pursuer_present[clean])
+        compared += int((circling.pursuer_present != before)[clean].any(axis=1).sum())
+    assert not np.array_equal(circling.pursuer_pos, other.pursuer_pos)  # they flew apart
+    assert compared > 50  # team changes met alike by both (105 of them)
+
+
 def test_the_paper_team_draws_nothing_more():
     """With the team closed (the default) no seat waits and the episode's stream is the
     paper's: the same first 50 steps as a scenario whose team section is spelled out."""
@@ -323,13 +349,13 @@ def test_a_learner_may_control_k_of_the_seats():
 
     from hola_ray.evaluation.metrics import zero_shot_values
     from hola_ray.evaluation.teams import draw_teams, partner_combinations, play
-    from hola_ray.oracle.mapping import LEARNER, PartnerMapping, learner_seats
+    from hola_ray.oracle.mapping import LEARNER, PartnerMapping
     from hola_ray.policies import make_policy
 
     config = PursuitConfig.from_dict(
         {"n_pursuers": 5, "team": {"present": 4, "changes": 2, "fixed": 2}}
     )
-    assert learner_seats(config) == (0, 1) and learner_seats(PursuitConfig()) is None
+    assert config.team.learner_seats == (0, 1) and PursuitConfig().team.learner_seats is None
     mapping = PartnerMapping(5, {"member_0": 1.0, "member_1": 1.0}, True, learner_seats=(0, 1))
     for episode in range(20):
         seats = mapping.assignment(str(episode))
@@ -345,20 +371,22 @@ def test_a_learner_may_control_k_of_the_seats():
         collision=crashed.any(axis=1),
         length=np.array([100, 50]),
         team_return=np.array([5.0, 10.0]),
+        played=np.array([[True] * 5, [True, True, True, False, True]]),
     )
     values = zero_shot_values(result, two[:2] == 0, 5)
     np.testing.assert_array_equal(values["learner_crash"], [1.0, 0.0])
-    np.testing.assert_allclose(values["teammate_crash"], [1 / 3, 1 / 3])
+    np.testing.assert_allclose(values["teammate_crash"], [1 / 3, 1 / 2])  # of those in play
+    np.testing.assert_allclose(values["reward"], [5.0 / 5, 10.0 / 4])
     learner = make_policy("vicsek", config)
     played = play(learner, [make_policy("greedy", config)], config, 24, [0])
     assert played["learner_crash"].shape == (24,)
 
 
 def test_an_arena_drawn_per_episode_plays_as_that_arena_does():
-    """`env.arenas`: each episode draws its layout from its own stream (all four among 64),
-    then plays exactly as a scenario fixed in that arena plays from the same state and
-    stream: observations, rewards, moves, step for step, to the end. Padding a layout with
-    spare shapes changes nothing. A mix of one arena draws nothing: the paper's episodes."""
+    """`env.arenas`: each episode draws its layout beside its own stream (all four among
+    64), then plays exactly as a scenario fixed in that arena seeded alike: the same start,
+    observations, rewards, moves, step for step, to the end. Padding a layout with spare
+    shapes changes nothing. A mix of one arena draws nothing: the paper's episodes."""
     mixed = PursuitConfig(arenas=("open", "bar", "blocks", "paper"), horizon=300)
     assert mixed.arena == "open" and PursuitConfig.from_dict(mixed.to_dict()) == mixed
     batch = BatchedPursuit(mixed, 64)
@@ -370,9 +398,9 @@ def test_an_arena_drawn_per_episode_plays_as_that_arena_does():
         twin = BatchedPursuit(batch.config_of(b), 1)
         assert twin.config.arena == batch.arena_of(b) == mixed.arenas[batch.layout_index[b]]
         assert not twin.config.arenas
-        state = {key: getattr(batch, key)[b].copy() for key in INITIAL_STATE_KEYS}
-        twin.reset(initial_state={0: state})
-        twin._arena.rng[0] = batch._arena.rng[b]  # the stream as the draw left it
+        twin.reset(seeds=[b])
+        for key in INITIAL_STATE_KEYS:
+            np.testing.assert_array_equal(getattr(twin, key)[0], getattr(batch, key)[b])
         np.testing.assert_array_equal(twin.obs[0], batch.obs[b])
         twins.append(twin)
     rng = np.random.default_rng(5)
@@ -435,6 +463,27 @@ def test_a_member_of_an_open_team_is_judged_as_the_papers_team_in_its_own_slots(
     assert (judged.n_pursuers, judged.pursuer_slots, judged.n_evaders) == (3, 5, 2)
     assert (judged.arena, judged.arenas, judged.team.open) == ("paper", (), False)
     assert judged.layout == open_team.layout  # its members read it as they trained
+
+
+def test_the_team_sizes_an_episode_can_reach_and_the_seats_a_learner_holds():
+    """`sizes`: the paper's team alone where closed (one pursuer too); where it changes,
+    from the smallest start less a leave a change (not below `min_team` or the fixed
+    seats) to the largest start plus a join a change (not beyond the seats). A team that
+    changes keeps a learner's seat; a member below 3 slots is judged in its own team."""
+    T = TeamChangeConfig
+    assert T().sizes(3) == (3,) and T().sizes(1) == (1,) and T().sizes(5) == (5,)
+    assert T(present=5, changes=1).sizes(5) == (4, 5)
+    assert T(present=(2, 5), changes=2, min_team=2).sizes(5) == (2, 3, 4, 5)
+    assert T(present=3, changes=1, min_team=3).sizes(5) == (3, 4)
+    assert T(present=4, changes=3, fixed=3).sizes(5) == (3, 4, 5)
+    assert T(present=(2, 3)).sizes(5) == (2, 3)
+    with pytest.raises(ConfigError, match="team.fixed must be >= 1 where the team changes"):
+        PursuitConfig.from_dict({"team": {"changes": 1, "fixed": 0}})
+    assert PursuitConfig.from_dict({"team": {"fixed": 0}}).team.learner_seats is None
+    pair = PursuitConfig(n_pursuers=2)
+    assert pair.judged() is pair
+    drawn = PursuitConfig(n_pursuers=2, arenas=("open", "bar")).judged()
+    assert (drawn.n_pursuers, drawn.arena, drawn.arenas) == (2, "paper", ())
 
 
 def test_a_replay_draws_the_episodes_own_arena_and_only_the_pursuers_in_play(tmp_path):

@@ -144,3 +144,61 @@ def test_a_method_of_several_seeds_is_figured_over_its_seeds(tmp_path):
         assert cell["learners"][method]["reward"]["mean"] == pytest.approx(np.mean(seeds))
     d = results["leads"]["zero-shot/het"]["a − b"]["difference"]["reward"]
     assert d["mean"] == pytest.approx(cell["differences"]["a − b"]["reward"]["mean"])
+
+
+def test_a_joiner_starts_its_episode_and_rew_counts_the_pursuers_in_play():
+    """In a team that changes, a teammate's policy is reset on the rows where it joins (a
+    stateful one's state is its episode's, not the waiting seat's), and REW and the
+    teammate crash count the seats that were in play: the same joins, found by replaying
+    the episodes' env with the same actions."""
+    from hola_ray.env import BatchedPursuit
+    from hola_ray.evaluation.metrics import zero_shot_values
+    from hola_ray.evaluation.rollout import rollout
+    from hola_ray.policies.base import Policy
+
+    class Recorder(Policy):
+        def __init__(self, config):
+            super().__init__(config)
+            self.calls = []
+
+        def reset(self, mask=None):
+            self.calls.append(np.asarray(mask).copy())
+
+        def act(self, obs):
+            return np.full(len(self._check(obs)), 0.55)
+
+    team = {"present": 2, "changes": 3, "window": [0.0, 0.3]}
+    config = PursuitConfig.from_dict(
+        {"n_pursuers": 5, "arena": "open", "horizon": 200, "team": team}
+    )
+    mates, me = Recorder(config), Recorder(config)
+    seeds = np.arange(32)
+    assignment = np.tile([0, 1, 1, 1, 1], (32, 1))
+    result = rollout(config, [me, mates], 32, assignment=assignment, episode_seeds=seeds)
+    env = BatchedPursuit(config, 32)
+    env.reset(seeds=seeds)
+    joins, played = np.zeros((32, 5), dtype=int), env.pursuer_present.copy()
+    while not env.done.all():
+        waiting = env.pursuer_waiting & ~env.done[:, None]
+        env.step(np.full((32, 5), 0.55))
+        joins += waiting & env.pursuer_present
+        played |= env.pursuer_present
+    assert joins.sum() > 10 and len(me.calls) == 1  # seat 0 never joins
+    assert mates.calls[0].all() and sum(int(c.sum()) for c in mates.calls[1:]) == joins.sum()
+    np.testing.assert_array_equal(result.played, played)
+    values = zero_shot_values(result, assignment == 0, 5)
+    np.testing.assert_allclose(values["reward"], result.team_return / played.sum(axis=1))
+    assert (played.sum(axis=1) < 5).any()  # the REW of a whole team would differ
+
+
+def test_a_d3qn_export_plays_every_cell_as_a_learner():
+    """A D3QN-G trained at 3 pursuers, given as a learner, plays a cell of 5 slots and of
+    2 to 5 pursuers through the adapter (its state of 3 built in the team it knows)."""
+    from hola_ray.evaluation.rollout import rollout
+
+    make = open_teams.learner_loader("pools/het/d3qn-g-1.pt")
+    for size in (2, 3, 5):
+        cell = open_teams.cell_scenario(PursuitConfig(n_evaders=2), "bar", "open", size)
+        learner = make(cell)
+        result = rollout(cell, [learner] * cell.n_pursuers, 4, seed=1)
+        assert result.success.shape == (4,)

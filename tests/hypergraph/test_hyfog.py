@@ -66,6 +66,30 @@ def test_ties_prefer_more_episodes_then_insertion_order():
     assert preference_hypergraph(g)["a"].nodes == ("a", "c")
 
 
+def test_teams_of_several_sizes_are_compared_per_member():
+    """Contract §6: a team's summed return grows with the team, so hyperedges of several
+    sizes are preferred by weight per member (a pair at 81.6 beats a trio at 121.1: 40.8
+    against 40.4 a member), equals of the one size by weight; the HOLA-Drone_R values count
+    a team of l as is and a smaller one scaled to l."""
+    from hola_ray.hypergraph.phi import node_values
+
+    g = HyFoG(l=3, max_size=4, sizes=(2, 3))
+    for v in "abcd":
+        g.add_node(v)
+    g.set_weight("ab", 81.6)
+    g.set_weight("abc", 121.1)
+    g.set_weight("cd", 70.0)
+    g.set_weight("bcd", 123.0)
+    best = preference_hypergraph(g)
+    assert best["a"].nodes == ("a", "b")  # by the sum the trio would win
+    assert best["b"].nodes == ("b", "c", "d") and best["c"].nodes == ("b", "c", "d")
+    assert best["d"].nodes == ("b", "c", "d")  # 41.0 a member beats the pair's 35.0
+    assert in_degree(g) == {"a": 0, "b": 3, "c": 2, "d": 2}
+    values = node_values(g, "mean_reward")
+    assert values["a"] == pytest.approx((81.6 * 1.5 + 121.1) / 2)
+    assert values["d"] == pytest.approx((70.0 * 1.5 + 123.0) / 2)
+
+
 def test_running_mean_and_removal():
     g = HyFoG(l=2, max_size=3)
     for v in (1, 2, 3):
