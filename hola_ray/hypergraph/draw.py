@@ -100,8 +100,8 @@ def draw(g: HyFoG, out: Path, kind: str = "myerson", title: str = "") -> None:
     colours = matplotlib.colormaps["plasma"]
     top = max(probability.values(), default=1.0)
     best = preference_hypergraph(g)
-    for source, e in best.items():
-        for target in e.nodes:
+    for source, edges in best.items():
+        for target in dict.fromkeys(v for e in edges for v in e.nodes):
             if target != source:
                 right.annotate(
                     "",

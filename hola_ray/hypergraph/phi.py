@@ -11,9 +11,9 @@ value or scaling them all by a positive factor, so negative returns need no spec
 All values equal (or a single node) gives the uniform φ.
 
 kind="myerson": x = Myerson value (HOLA-Drone); kind="mean_reward": x = mean weight of the
-node's hyperedges (the HOLA-Drone_R ablation), each hyperedge T's as w(T)·l/|T| where
-sizes differ (contract §6: the summed return grows with the team; a team of l counts as
-is). With hyperedges of the one size l, MV_i = (d_i / l)·(mean weight of i's hyperedges),
+node's hyperedges (the HOLA-Drone_R ablation); with teams of several sizes (contract §6),
+the mean over sizes of the node's mean weight in each, as a team's weight is not neutral
+to its size. With hyperedges of the one size l, MV_i = (d_i / l)·(mean weight of i's hyperedges),
 d_i the number of i's hyperedges, so the two kinds give the same φ whenever every node has
 the same degree, G_0 (every l-set of the initial members) among them (results/NOTEBOOK.md,
 "Why `hola_r` trained exactly like `hola`"); with several sizes MV_i = Σ_{T∋i} w(T)/|T|.
@@ -30,18 +30,18 @@ from hola_ray.hypergraph.myerson import myerson_value
 
 def node_values(g: HyFoG, kind: str = "myerson") -> dict[NodeId, float | None]:
     """x_i per node (None for a node with no hyperedge)."""
-    degree = dict.fromkeys(g.nodes, 0)
-    total = dict.fromkeys(g.nodes, 0.0)
+    weights: dict[NodeId, dict[int, list[float]]] = {v: {} for v in g.nodes}
     for nodes, weight in g.weights():
-        scaled = weight if len(nodes) == g.l else weight * g.l / len(nodes)
         for node in nodes:
-            degree[node] += 1
-            total[node] += scaled
+            weights[node].setdefault(len(nodes), []).append(weight)
     if kind == "myerson":
         mv = myerson_value(g, "closed")
-        return {v: (mv[v] if degree[v] else None) for v in g.nodes}
-    if kind == "mean_reward":
-        return {v: (total[v] / degree[v] if degree[v] else None) for v in g.nodes}
+        return {v: (mv[v] if weights[v] else None) for v in g.nodes}
+    if kind == "mean_reward":  # per size, then over the sizes: neutral to the sizes' mix
+        return {
+            v: (sum(sum(w) / len(w) for w in by_size.values()) / len(by_size) if by_size else None)
+            for v, by_size in weights.items()
+        }
     raise ValueError(f"kind must be 'myerson' or 'mean_reward', got {kind!r}")
 
 

@@ -5,49 +5,47 @@ from __future__ import annotations
 from hola_ray.hypergraph.hyfog import HyFoG, Hyperedge, NodeId
 
 
-def preference_hypergraph(g: HyFoG) -> dict[NodeId, Hyperedge]:
-    """Each node's out-hyperedge: its best incident hyperedge by weight per member.
+def preference_hypergraph(g: HyFoG) -> dict[NodeId, tuple[Hyperedge, ...]]:
+    """Each node's out-hyperedges: its best incident hyperedge by weight, one of each size
+    the node has hyperedges of (one in the paper's HyFoG, whose teams are all of l).
 
-    The weight is the team's summed return, which grows with the team: hyperedges of
-    several sizes (contract §6) are compared by weight per member, w(T)/|T|, else the
-    largest teams would be every node's best; those of one size by weight, as the paper
-    has it. Ties are broken deterministically: among equals the one with more episodes
-    behind it wins, then the one whose members, in insertion order, come first
-    (lexicographic on their insertion ranks). A node with no hyperedge has no out-edge.
+    Teams of several sizes (contract §6) are compared within a size only: the weight is the
+    team's summed return, and neither it nor its share per member is neutral to the size
+    (the summed return grows with the team; per member, a larger team pays more teammate
+    penalties and crashes for the same capture bonus), so across sizes either rule would
+    make one size every node's best. Ties are broken deterministically: among hyperedges of
+    equal weight the one with more episodes behind it wins, then the one whose members, in
+    insertion order, come first (lexicographic on their insertion ranks). A node with no
+    hyperedge has no out-edge.
     """
-    best: dict[NodeId, Hyperedge] = {}
+    best: dict[NodeId, dict[int, Hyperedge]] = {}
     for edge in g.edges:  # sorted by insertion ranks, so the first of equals is kept
+        size = len(edge.nodes)
         for node in edge.nodes:
-            held = best.get(node)
-            if held is None or _better(edge, held):
-                best[node] = edge
-    return best
-
-
-def _better(edge: Hyperedge, held: Hyperedge) -> bool:
-    """`edge` beats `held`: more weight per member (cross-multiplied: exact for one size),
-    then more episodes."""
-    mine = edge.weight * len(held.nodes)
-    theirs = held.weight * len(edge.nodes)
-    if len(edge.nodes) == len(held.nodes):
-        mine, theirs = edge.weight, held.weight
-    return (mine, edge.episodes) > (theirs, held.episodes)
+            held = best.setdefault(node, {}).get(size)
+            if held is None or (edge.weight, edge.episodes) > (held.weight, held.episodes):
+                best[node][size] = edge
+    return {v: tuple(by_size[k] for k in sorted(by_size)) for v, by_size in best.items()}
 
 
 def in_degree(g: HyFoG) -> dict[NodeId, int]:
-    """d(i): how many other nodes' out-hyperedges contain i."""
+    """d(i): how many out-hyperedges of other nodes contain i (summed over the sizes)."""
     degree = dict.fromkeys(g.nodes, 0)
-    for source, edge in preference_hypergraph(g).items():
-        for node in edge.nodes:
-            if node != source:
-                degree[node] += 1
+    for source, edges in preference_hypergraph(g).items():
+        for edge in edges:
+            for node in edge.nodes:
+                if node != source:
+                    degree[node] += 1
     return degree
 
 
 def centrality(g: HyFoG) -> dict[NodeId, float]:
-    """Hyper-preference centrality η_i = d(i) / (|V| − 1) (0 for a lone node)."""
+    """Hyper-preference centrality η_i = d(i) / (|V| − 1) (0 for a lone node); with teams of
+    several sizes, d(i) sums a vote per size and η divides by their number too, so each
+    size's preferences weigh alike and η stays in [0, 1]."""
     n = len(g)
-    return {v: (d / (n - 1) if n > 1 else 0.0) for v, d in in_degree(g).items()}
+    votes = (n - 1) * len(g.sizes)
+    return {v: (d / votes if n > 1 else 0.0) for v, d in in_degree(g).items()}
 
 
 def ranking(g: HyFoG) -> list[NodeId]:

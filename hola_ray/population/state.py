@@ -72,7 +72,8 @@ class Population:
         self.preferred_only = preferred_only
         """a candidate joins only at η > 0 (`PopulationConfig.preferred_only`)"""
         self.learner_returns: dict[int, float] = {}
-        """member → mean team return of the latest candidate's hyperedges that hold it"""
+        """member → mean team return of the latest candidate's hyperedges that hold it (with
+        teams of several sizes, each return less its size's mean)"""
         self.extra: dict[str, Any] = {}
         """what a method keeps between generations (JSON-safe; PBT: its agents' scores
         and hyperparameters)"""
@@ -154,8 +155,18 @@ class Population:
             self.hyfog.set_weight(r.nodes, r.team_return, r.episodes)
         if self.candidate is not None:
             with_candidate = [r for r in results if self.candidate in r.nodes]
+            # teams of several sizes (contract §6): each return as its difference from the
+            # mean of its size's, as a team's return is not neutral to its size
+            by_size: dict[int, list[float]] = {}
+            for r in with_candidate:
+                by_size.setdefault(len(r.nodes), []).append(r.team_return)
+            offset = {k: float(np.mean(v)) if len(by_size) > 1 else 0.0 for k, v in by_size.items()}
             for member in self.members:
-                returns = [r.team_return for r in with_candidate if member in r.nodes]
+                returns = [
+                    r.team_return - offset[len(r.nodes)]
+                    for r in with_candidate
+                    if member in r.nodes
+                ]
                 if returns:
                     self.learner_returns[member] = float(np.mean(returns))
 

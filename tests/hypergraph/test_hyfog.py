@@ -46,7 +46,8 @@ def fig3() -> HyFoG:
 def test_fig3_centrality():
     g = fig3()
     best = preference_hypergraph(g)
-    assert best["v4"].nodes == ("v2", "v3", "v4") and best["v5"].nodes == ("v2", "v3", "v5")
+    assert best["v4"][0].nodes == ("v2", "v3", "v4") and best["v5"][0].nodes == ("v2", "v3", "v5")
+    assert all(len(edges) == 1 for edges in best.values())  # one size: one out-edge each
     assert in_degree(g) == {"v1": 2, "v2": 4, "v3": 4, "v4": 0, "v5": 0}
     assert centrality(g) == {"v1": 0.5, "v2": 1.0, "v3": 1.0, "v4": 0.0, "v5": 0.0}
     assert ranking(g) == ["v2", "v3", "v1", "v4", "v5"]
@@ -61,33 +62,37 @@ def test_ties_prefer_more_episodes_then_insertion_order():
         g.add_node(v)
     g.set_weight("ab", 5.0)
     g.set_weight("ac", 5.0)
-    assert preference_hypergraph(g)["a"].nodes == ("a", "b")  # earlier members win
+    assert preference_hypergraph(g)["a"][0].nodes == ("a", "b")  # earlier members win
     g.set_weight("ac", 5.0, episodes=3)  # same mean, more evidence
-    assert preference_hypergraph(g)["a"].nodes == ("a", "c")
+    assert preference_hypergraph(g)["a"][0].nodes == ("a", "c")
 
 
-def test_teams_of_several_sizes_are_compared_per_member():
-    """Contract §6: a team's summed return grows with the team, so hyperedges of several
-    sizes are preferred by weight per member (a pair at 81.6 beats a trio at 121.1: 40.8
-    against 40.4 a member), equals of the one size by weight; the HOLA-Drone_R values count
-    a team of l as is and a smaller one scaled to l."""
+def test_teams_of_several_sizes_are_compared_within_a_size():
+    """Contract §6: neither a team's summed return nor its share per member is neutral to
+    the team's size, so a node prefers one team of each size, and η counts a vote per size
+    (divided by their number); the HOLA-Drone_R value is the mean over sizes of the node's
+    mean weight in each."""
     from hola_ray.hypergraph.phi import node_values
 
     g = HyFoG(l=3, max_size=4, sizes=(2, 3))
     for v in "abcd":
         g.add_node(v)
     g.set_weight("ab", 81.6)
-    g.set_weight("abc", 121.1)
+    g.set_weight("ac", 60.0)
     g.set_weight("cd", 70.0)
+    g.set_weight("abc", 121.1)
     g.set_weight("bcd", 123.0)
     best = preference_hypergraph(g)
-    assert best["a"].nodes == ("a", "b")  # by the sum the trio would win
-    assert best["b"].nodes == ("b", "c", "d") and best["c"].nodes == ("b", "c", "d")
-    assert best["d"].nodes == ("b", "c", "d")  # 41.0 a member beats the pair's 35.0
-    assert in_degree(g) == {"a": 0, "b": 3, "c": 2, "d": 2}
+    assert [e.nodes for e in best["a"]] == [("a", "b"), ("a", "b", "c")]
+    assert [e.nodes for e in best["c"]] == [("c", "d"), ("b", "c", "d")]
+    assert [e.nodes for e in best["b"]] == [("a", "b"), ("b", "c", "d")]
+    # votes: a → b; a's trio → b, c; b → a; b's trio → c, d; c → d; c's trio → b, d;
+    # d → c; d's trio → b, c
+    assert in_degree(g) == {"a": 1, "b": 4, "c": 4, "d": 3}
+    assert centrality(g) == {"a": 1 / 6, "b": 4 / 6, "c": 4 / 6, "d": 3 / 6}
     values = node_values(g, "mean_reward")
-    assert values["a"] == pytest.approx((81.6 * 1.5 + 121.1) / 2)
-    assert values["d"] == pytest.approx((70.0 * 1.5 + 123.0) / 2)
+    assert values["a"] == pytest.approx(((81.6 + 60.0) / 2 + 121.1) / 2)
+    assert values["d"] == pytest.approx((70.0 + 123.0) / 2)
 
 
 def test_running_mean_and_removal():

@@ -418,7 +418,19 @@ def test_a_population_for_teams_of_several_sizes():
     picked = p.candidate_edges(2, np.random.default_rng(0))
     assert [len(e) for e in picked] == [2, 2, 3, 3] and all(e[0] == candidate for e in picked)
     assert len(p.candidate_edges(0, np.random.default_rng(0))) == 4 + 6
-    p.record([edge(e, 1.0) for e in picked])
+    # the candidate's returns, each less its size's mean: the member of its first pair sits
+    # above both sizes' means, so it ranks first, though pairs return less than triples
+    best = picked[0][1]
+
+    def measured(e):
+        return 10.0 * len(e) + (2.0 if best in e else 0.0)
+
+    p.record([edge(e, measured(e)) for e in picked])
+    offset = {k: np.mean([measured(e) for e in picked if len(e) == k]) for k in (2, 3)}
+    for member, value in p.learner_returns.items():
+        mine = [measured(e) - offset[len(e)] for e in picked if member in e]
+        assert value == pytest.approx(np.mean(mine))
+    assert max(p.learner_returns, key=p.learner_returns.get) == best
     p.decide()
     back = Population.from_dict(p.to_dict())
     assert back.sizes == (2, 3) and back.hyfog == p.hyfog
