@@ -12,6 +12,7 @@ MEP mode, trains the initial population jointly with the population-entropy bonu
 
 from __future__ import annotations
 
+import math
 import time
 import weakref
 from collections.abc import Callable, Mapping, Sequence
@@ -51,6 +52,16 @@ ModuleState = Mapping[str, Any]
 
 def _make_env(env_config: Mapping[str, Any]) -> ParallelPettingZooEnv:
     return ParallelPettingZooEnv(PursuitEnv(env_config["scenario"]))
+
+
+def learner_seats_per_step(env: PursuitConfig, self_play: bool) -> float:
+    """The seats the trained learner plays in an env step: its fixed seats where the team
+    changes (one where it is kept whole); in self-play every pursuer in play, for a team
+    that changes the mean of its starting sizes (its joins and leaves about even)."""
+    if self_play:
+        low, high = env.team.start_range(env.n_pursuers)
+        return (low + high) / 2
+    return len(env.team.learner_seats or (0,))
 
 
 class _RepushOnRecreate(RLlibCallback):
@@ -129,8 +140,7 @@ class Oracle:
         self.counts_samples = config.budget == "learner_samples" and not self.mep
         """`train(n)` counts the learner's own transitions (not env steps); MEP pre-training
         (every member trained) counts env steps"""
-        fixed = env.team.learner_seats
-        self.seats = n_p if seating.self_play else (len(fixed) if fixed else 1)
+        self.seats = learner_seats_per_step(env, seating.self_play)
         """seats the trained learner plays per env step: a learner_samples batch of
         `train_batch` transitions spans train_batch / seats env steps"""
         self._pushed = _Pushed(phi=self.mapping.phi, salt=0, weights={})
@@ -208,7 +218,7 @@ class Oracle:
             .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
             .training(
                 train_batch_size_per_learner=(
-                    -(-o.train_batch // self.seats) if self.counts_samples else o.train_batch
+                    math.ceil(o.train_batch / self.seats) if self.counts_samples else o.train_batch
                 ),
                 minibatch_size=o.minibatch,
                 num_epochs=o.epochs,

@@ -314,6 +314,22 @@ def test_a_team_size_drawn_per_episode():
         PursuitConfig.from_dict({"n_pursuers": 3, "team": {"present": [3, 2]}})
 
 
+def test_a_learner_samples_batch_spans_the_env_steps_its_seats_fill():
+    """`learner_samples`: a batch of train_batch transitions spans train_batch / seats env
+    steps: one seat for a whole team, the fixed ones where it changes, every pursuer in
+    play in self-play (for a team that changes, the mean of its starting sizes)."""
+    from hola_ray.oracle.trainer import learner_seats_per_step
+
+    def env(**team):
+        return PursuitConfig.from_dict({"n_pursuers": 5, "team": team})
+
+    assert learner_seats_per_step(PursuitConfig(), False) == 1
+    assert learner_seats_per_step(PursuitConfig(), True) == 3
+    assert learner_seats_per_step(env(present=4, changes=2, fixed=2), False) == 2
+    assert learner_seats_per_step(env(present=[2, 5], changes=2), True) == 3.5
+    assert learner_seats_per_step(env(), True) == 5
+
+
 def test_the_learner_sits_in_the_seat_that_stays_when_the_team_changes():
     """Evaluation's teams: the learner in a random seat for a closed team (the draws as
     they were), in seat 0 when the team changes; an open evaluation plays end to end and a
