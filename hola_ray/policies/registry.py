@@ -129,8 +129,9 @@ def load_fitted(
     team and slots (contract §6.2): built in the scenario it was trained in (`trained`,
     else the file's own: `played_scenario`) and fitted to `config`'s observation through
     the adapter (`fitted`). A D3QN-G export reads the first evader only: it is built in
-    `config` with its own team's slots. The one rule the pools, the reference seats, the
-    evaluation's learners and flight load learned policies by."""
+    `config` with its own team's slots. The one rule the pools, the reference seats and
+    the open-team grid's learners load learned policies by (flight fits an already loaded
+    policy with `fitted`)."""
     from hola_ray.policies.adapter import fitted
     from hola_ray.policies.adapter import trained_scenario as observed_as
     from hola_ray.policies.d3qn import FORMAT as D3QN_FORMAT
