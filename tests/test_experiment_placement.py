@@ -388,13 +388,21 @@ def test_a_worker_node_lost_mid_experiment_loses_nothing(two_nodes, tmp_path):
     spare = [cluster.add_node(num_cpus=2) for _ in range(2)]  # while the trials start
     cluster.wait_for_nodes()
     dirs = [runner.trial_dir(t) for t in runner.exp.trials()]
-    # a trial past generation 1: lose every node a trial runs on (a trial's coordinator
-    # lives on its node)
-    wait_until(lambda: any(1 in RunDir(d).completed() for d in dirs) or not thread.is_alive(), "")
-    hosts = set(alive("Coordinator"))
+    # a trial past generation 1 and still running: lose every node a trial runs on (a
+    # trial's coordinator lives on its node). Both conditions at one poll: on a fast machine
+    # a trial has finished generation 2 by the time a later look for its coordinator asks
+    hosts: set[str] = set()
+
+    def past_one() -> bool:
+        hosts.clear()
+        if any(1 in RunDir(d).completed() for d in dirs):
+            hosts.update(alive("Coordinator"))
+        return bool(hosts) or not thread.is_alive()
+
+    wait_until(past_one, "a trial past generation 1 with its coordinator alive")
     before = stamps(dirs)
     doomed = [n for n in [*cluster.worker_nodes] if n.node_id in hosts]
-    assert doomed and len(doomed) <= len(spare), hosts  # two 2-CPU workers stay
+    assert doomed and len(doomed) <= len(spare), (hosts, outcome, lines)  # two 2-CPU workers stay
     for node in doomed:
         cluster.remove_node(node)
 

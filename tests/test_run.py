@@ -36,9 +36,15 @@ COUNTS = ("env_steps", "pretrain_env_steps", "grapher_edges", "population_size",
 
 def test_the_same_seed_gives_the_same_metrics_as_the_recorded_build(smoke_run):
     """The smoke config's seed gives the metrics an earlier build recorded: every field,
-    wall times aside, to the last digit where torch computes as it did there (the same
-    build and CPU capability; elsewhere float rounding may differ and play diverges), and
-    the fields the config and budget set wherever it runs. Redesigns keep behaviour."""
+    wall times aside, where torch computes as it did there (the same build and CPU
+    capability), and the fields the config and budget set wherever it runs. Redesigns keep
+    behaviour.
+
+    Where torch matches, counts and every figure of play match exactly and a float to
+    FLOAT_DIGITS: the CPU beyond its capability still sets the last digits (on a Sapphire
+    Rapids Xeon, AVX512 like the recording machine, the learner's return and φ's entropy
+    differ by 2e-8 relative, every other field equal, and no MKL branch (`MKL_CBWR`)
+    reproduces the recorded digits). Elsewhere float rounding may differ and play diverges."""
     recorded = json.loads(RECORDED.read_text())
     assert smoke_run[1].returncode == 0, smoke_run[1].stderr[-3000:]
     rows = RunDir(smoke_run[0]).metrics_rows()
@@ -51,7 +57,19 @@ def test_the_same_seed_gives_the_same_metrics_as_the_recorded_build(smoke_run):
         fields = then if same_torch else {k: then[k] for k in COUNTS if k in then}
         for field, value in fields.items():
             now = got.get(field)
-            assert now == value or (now != now and value != value), (field, now, value)
+            assert _same_figure(now, value), (field, now, value)
+
+
+FLOAT_DIGITS = 1e-6
+"""the relative difference a float of the recorded run may show where torch matches"""
+
+
+def _same_figure(now, then) -> bool:
+    """Equal (NaN as NaN), or both floats, `then` not a whole number, within FLOAT_DIGITS."""
+    if now == then or (now != now and then != then):
+        return True
+    fractional = isinstance(now, float) and isinstance(then, float) and not then.is_integer()
+    return fractional and abs(now - then) <= FLOAT_DIGITS * abs(then)
 
 
 def test_smoke_run_writes_the_whole_run_directory(smoke_run, tmp_path):
