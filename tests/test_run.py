@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import signal
 import subprocess
@@ -40,7 +41,7 @@ def test_the_same_seed_gives_the_same_metrics_as_the_recorded_build(smoke_run):
     capability), and the fields the config and budget set wherever it runs. Redesigns keep
     behaviour.
 
-    Where torch matches, counts and every figure of play match exactly and a float to
+    Where torch matches, counts and whole numbers match exactly and other floats to
     FLOAT_DIGITS: the CPU beyond its capability still sets the last digits (on a Sapphire
     Rapids Xeon, AVX512 like the recording machine, the learner's return and φ's entropy
     differ by 2e-8 relative, every other field equal, and no MKL branch (`MKL_CBWR`)
@@ -69,7 +70,7 @@ def _same_figure(now, then) -> bool:
     if now == then or (now != now and then != then):
         return True
     fractional = isinstance(now, float) and isinstance(then, float) and not then.is_integer()
-    return fractional and abs(now - then) <= FLOAT_DIGITS * abs(then)
+    return fractional and math.isclose(now, then, rel_tol=FLOAT_DIGITS)
 
 
 def test_smoke_run_writes_the_whole_run_directory(smoke_run, tmp_path):
