@@ -28,6 +28,7 @@ import dataclasses
 import functools
 import json
 import time
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -226,7 +227,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"wrote {args.replay}")
     if not args.json:
         print(
-            f"{args.policy} with {', '.join(mates)}, {figures['scenario']}, "
+            f"{args.policy} with {teammates_phrase(args.policy, mates)}, {figures['scenario']}, "
             f"{args.episodes} episodes (seed {args.seed}):"
         )
         for key in ("success", "collision", "length", "crash_seat0", "crash_mates"):
@@ -235,6 +236,16 @@ def main(argv: list[str] | None = None) -> int:
             )
     print(json.dumps(figures))
     return 0
+
+
+def teammates_phrase(policy: str, mates: list[str]) -> str:
+    """`mates` as the report's first line names them: a repeated name once, with its count,
+    and the policy's own copies as such."""
+    parts = []
+    for mate, count in Counter(mates).items():
+        name = "itself" if mate == policy else mate
+        parts.append(name if count == 1 else f"{count} copies of {name}")
+    return ", ".join(parts)
 
 
 def script() -> None:

@@ -145,3 +145,13 @@ def test_an_open_team_learner_exports_and_flies_in_teams_of_three_and_five(tmp_p
         size = 5 if name == "five" else 3
         assert figures["scenario"] == f"{size} vs 2", name
         assert 1 <= figures["length"] <= 60 and 1 <= figures["kinematic_length"] <= 60
+
+
+def test_the_report_names_repeated_teammates_once_with_their_count():
+    from hola_ray.commands.fly import teammates_phrase
+
+    assert teammates_phrase("a.onnx", ["a.onnx"] * 4) == "4 copies of itself"
+    assert teammates_phrase("a.onnx", ["a.onnx", "ppo-1", "greedy", "a.onnx"]) == (
+        "2 copies of itself, ppo-1, greedy"
+    )
+    assert teammates_phrase("a.onnx", ["ppo-1"]) == "ppo-1"
