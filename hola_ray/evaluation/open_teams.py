@@ -351,12 +351,16 @@ def table(results: Mapping[str, Any]) -> list[str]:
         return f"{mean:.1%} [{lo:.1%}, {hi:.1%}]"
 
     lines = [
-        "| arena | mode | n | pool | learner | SUC | COL | AST | REW | own crash "
-        "| floor / ceiling SUC |",
+        "SUC success, COL collision, AST steps to success, REW return per pursuer, own crash "
+        "the learner's seat's; 95 % intervals over the cell's episodes. The scale: the "
+        "reference seats' success on the same episodes (the floor holds its heading; the "
+        "ceilings are the hand-written pursuer and, where one plays the size, a learned one).",
+        "",
+        "| arena | mode | n | pool | learner | SUC | COL | AST | REW | own crash | scale (SUC) |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for c in results["cells"]:
-        refs = " / ".join(f"{f['success']['mean']:.1%}" for f in c["references"].values())
+        refs = ", ".join(f"{ref} {f['success']['mean']:.1%}" for ref, f in c["references"].items())
         for name, f in c["learners"].items():
             cells = " | ".join(cell(f[m], m) for m in FIGURES)
             lines.append(

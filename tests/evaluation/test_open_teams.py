@@ -85,6 +85,11 @@ def test_every_seat_plays_the_cells_episodes_and_a_lead_is_the_cells_at_once(tmp
         assert d["cells"] == 2 and d["episodes"] == 16
         assert d["difference"]["reward"]["mean"] == pytest.approx(np.mean(per_cell))
     lines = open_teams.table(results)
+    rows = [line for line in lines if line.startswith("| open | open | 2 |")]
+    assert len(rows) == 3
+    scale = rows[0].rsplit("|", 2)[-2]
+    for ref, f in cells[2]["references"].items():
+        assert f"{ref} {f['success']['mean']:.1%}" in scale
     assert sum(line.startswith("| open | open |") for line in lines) == 2 * 3
     written = open_teams.report(results, tmp_path / "out")
     assert [p.name for p in written] == ["open-teams-open.png", "results.md"]
