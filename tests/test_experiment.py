@@ -269,6 +269,69 @@ def test_methods_and_their_paired_differences_from_every_trials_episodes():
     assert row.split(" | ")[3] == f"{2.8 * tie['se']:.1%}"
 
 
+def test_an_experiment_stopped_short_evaluates_its_whole_seeds_and_says_so(tmp_path):
+    """`--stop-short`: nothing more is trained; the seeds whose every method is done are
+    evaluated (a seed with one trial unfinished is left out whole, so every method is
+    figured over the same seeds), and results.json and results.md say the plan was cut."""
+    from hola_ray.evaluation.compare import METRICS
+    from hola_ray.experiment.command import main
+    from hola_ray.experiment.runner import Runner
+
+    path = tmp_path / "x.yaml"
+    raw = {"base": str(ROOT / "configs" / "smoke.yaml"), "methods": ["hola", "sp"]}
+    path.write_text(yaml.safe_dump(raw | {"seeds": [3, 4, 5]}))
+    exp = Experiment.from_yaml(path)
+    runner = Runner(exp, tmp_path / "exp", say=lambda *_: None)
+    done = {"hola-s3", "sp-s3", "hola-s4", "sp-s5"}  # sp-s4 and hola-s5 not finished
+    runner.states = lambda: {t: ("done", 1) if t in done else ("partial", 0) for t in exp.trials()}
+    assert runner.whole_seeds() == ([3], ["hola-s4", "sp-s4", "hola-s5", "sp-s5"])
+
+    asked = []
+    rng = np.random.default_rng(0)
+
+    def record(rate):
+        success = (rng.random(40) < rate).astype(float)
+        per_episode = {
+            "success": success,
+            "collision": 1 - success,
+            "length": np.where(success > 0, 300.0, 1000.0),
+            "reward": 20.0 * success,
+            "learner_crash": 1 - success,
+            "teammate_crash": np.zeros(40),
+            "stratum": np.arange(40) % 4,
+        }
+        figures = {k: float(np.mean(per_episode.get(k, success))) for k in METRICS}
+        return {
+            "hot": figures
+            | {f"{k}_se": 0.05 for k in METRICS}
+            | {"per_episode": {k: list(v) for k, v in per_episode.items()}, "score_iqm": rate}
+        }
+
+    def evaluate(trials=None):
+        asked.append(list(trials))
+        return {t: record(0.6 if t.startswith("hola") else 0.4) for t in trials}
+
+    runner.evaluate = evaluate
+    results = runner.stop_short()
+    assert asked == [["hola-s3", "sp-s3"]]  # nothing else played, nothing trained
+    assert set(results["trials"]) == {"hola-s3", "sp-s3"}
+    assert results["stopped_short"] == {
+        "seeds": [3],
+        "left_out": ["hola-s4", "sp-s4", "hola-s5", "sp-s5"],
+    }
+    saved = json.loads((tmp_path / "exp" / "results.json").read_text())
+    assert saved["stopped_short"]["seeds"] == [3]
+    md = (tmp_path / "exp" / "results.md").read_text()
+    assert md.startswith("**Stopped short of the plan**: 1 of 3 seeds evaluated")
+    assert "Mean over 1 training seed(s)" in md
+
+    # no whole seed: one clear error; and the flag only ends an experiment under way
+    runner.states = lambda: dict.fromkeys(exp.trials(), ("partial", 0))
+    with pytest.raises(RuntimeError, match="no seed has every method's trial done"):
+        runner.stop_short()
+    assert main(["--config", str(path), "--stop-short"]) == 2
+
+
 @pytest.mark.parametrize(
     ("name", "evaders"),
     [("smoke", 2), ("laptop-3v2", 2), ("paper", 2), ("laptop", 1), ("comparison-3v2", 2)],

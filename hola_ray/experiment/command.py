@@ -2,6 +2,7 @@
 
     python -m hola_ray.experiment --config configs/experiments/X.yaml [--out DIR]
     python -m hola_ray.experiment --resume DIR
+    python -m hola_ray.experiment --resume DIR --stop-short   # end before the plan: evaluate
 
 The experiment config and what the command does: `hola_ray.experiment`'s doc.
 """
@@ -48,7 +49,11 @@ def main(argv: list[str] | None = None) -> int:
         flush=True,
     )
     try:
-        Runner(experiment, out, say=lambda s: print(s, flush=True)).run()
+        runner = Runner(experiment, out, say=lambda s: print(s, flush=True))
+        if args.stop_short:
+            runner.stop_short()
+        else:
+            runner.run()
     except RuntimeError as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
@@ -62,6 +67,12 @@ def _parser() -> OneLineParser:
     parser.add_argument("--config", type=Path, help="experiment YAML (configs/experiments/)")
     parser.add_argument("--out", type=Path, help="experiment directory (default runs/<name>-…)")
     parser.add_argument("--resume", type=Path, metavar="DIR", help="continue an experiment")
+    parser.add_argument(
+        "--stop-short",
+        action="store_true",
+        help="with --resume: train nothing more; evaluate the seeds whose every method is "
+        "done and write the results marked as stopped short of the plan",
+    )
     parser.add_argument("--num-cpus", type=int, help="CPUs of the local Ray (default: all)")
     parser.add_argument(
         "--metrics-port",
@@ -82,6 +93,8 @@ def _experiment_and_dir(args: argparse.Namespace) -> tuple[Experiment, Path]:
     from hola_ray.experiment.config import CONFIG_NAME, Experiment
     from hola_ray.homes import RUNS
 
+    if args.stop_short and args.resume is None:
+        raise ConfigError("--stop-short ends an experiment under way: give --resume DIR")
     if args.resume is not None:
         if args.config is not None or args.out is not None:
             raise ConfigError("--resume DIR takes the experiment's own config; drop --config")

@@ -98,10 +98,13 @@ def write_results(
     per_trial: Mapping[str, Mapping[str, Any]],
     spent: Mapping[str, Mapping[str, Any]],
     builds: Mapping[str, str],
+    stopped_short: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """results.json, results.md and figure.png in `out` from every trial's evaluation
     (`per_trial`), what its training took (`spent`, `budget_spent`) and the label of the
-    population it was built on (`builds`); returns what results.json holds."""
+    population it was built on (`builds`); returns what results.json holds. An experiment
+    ended before its plan (`--stop-short`) says so: `stopped_short` names the seeds
+    evaluated and the trials left out."""
     methods, differences = aggregate(per_trial, list(exp.methods), exp.pairs())
     checked = builds_check(
         {t: {p: r["success"] for p, r in pools_.items()} for t, pools_ in per_trial.items()},
@@ -113,6 +116,7 @@ def write_results(
         "experiment": str(exp.source) if exp.source else None,
         "base": exp.base,
         "seeds": list(exp.seeds),
+        **({"stopped_short": dict(stopped_short)} if stopped_short else {}),
         "evaluation": {
             "episodes_per_seed": exp.evaluation.episodes,
             "seeds": list(exp.evaluation.seeds),
@@ -154,9 +158,18 @@ def write_tables(exp: Experiment, out: Path, results: Mapping[str, Any]) -> None
         else ""
     )
     said = results["verdict"].get("sentence")
+    short = results.get("stopped_short")
+    seeds = len(short["seeds"]) if short else len(exp.seeds)
     (out / "results.md").write_text(
-        (f"**Verdict** (the rule fixed before the runs): {said}\n\n" if said else "")
-        + results_table(figure_input, results["differences"], len(exp.seeds))
+        (
+            f"**Stopped short of the plan**: {seeds} of {len(exp.seeds)} seeds evaluated "
+            f"(those whose every method finished); left out: {', '.join(short['left_out'])}."
+            "\n\n"
+            if short
+            else ""
+        )
+        + (f"**Verdict** (the rule fixed before the runs): {said}\n\n" if said else "")
+        + results_table(figure_input, results["differences"], seeds)
         + builds_table(results["builds"])
         + note
     )

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from hola_ray.config.scenario import PursuitConfig
-from hola_ray.experiment.config import Experiment, parse_trial
+from hola_ray.experiment.config import Experiment, parse_trial, trial_name
 from hola_ray.experiment.report import budget_spent, write_results
 from hola_ray.experiment.results import EVALUATION_FORMAT, _atomic_json, build_label
 from hola_ray.experiment.tasks import MARK, _evaluate_trial, _reference, _run_trial, trial_state
@@ -273,7 +273,9 @@ class Runner:
             )
         return games[0]
 
-    def evaluate(self) -> dict[str, dict[str, Any]]:
+    def evaluate(self, trials: Sequence[str] | None = None) -> dict[str, dict[str, Any]]:
+        """Every trial's learner (or those of `trials`) against the pools, each cached in
+        OUT/evaluation/<trial>.json with the settings it was played under."""
         import ray
 
         self.eval_dir.mkdir(parents=True, exist_ok=True)
@@ -293,7 +295,8 @@ class Runner:
         }
         results: dict[str, dict[str, Any]] = {}
         todo: list[str] = []
-        for t in self.exp.trials():
+        trials = list(self.exp.trials() if trials is None else trials)
+        for t in trials:
             cached = self.eval_dir / f"{t}.json"
             if cached.is_file():
                 saved = json.loads(cached.read_text())
@@ -302,7 +305,7 @@ class Runner:
                     continue
             todo.append(t)
         if not todo:
-            return {t: results[t] for t in self.exp.trials()}
+            return {t: results[t] for t in trials}
         self.say(
             f"evaluating {len(todo)} learner(s) against {', '.join(settings['pools'])}: "
             "the pools' reference returns first"
@@ -328,7 +331,7 @@ class Runner:
                 for p, r in results[t].items()
             )
             self.say(f"{t}: {figures}")
-        return {t: results[t] for t in self.exp.trials()}
+        return {t: results[t] for t in trials}
 
     def evaluate_open_teams(self) -> dict[str, Any]:
         """`evaluation.protocol: open-teams`: every trial's learner through contract §6.4's
@@ -372,14 +375,55 @@ class Runner:
         return results
 
     # ---- phase 3: results -------------------------------------------------------------------
-    def write_results(self, per_trial: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    def write_results(
+        self,
+        per_trial: Mapping[str, Mapping[str, Any]],
+        stopped_short: Mapping[str, Any] | None = None,
+    ) -> dict[str, Any]:
         """results.json, results.md and figure.png of the evaluated trials (`report`)."""
         spent = {t: budget_spent(self.trial_dir(t)) for t in per_trial}
         builds = {
             t: build_label(self.configs[t].pretrain.population, parse_trial(t)[1])
             for t in per_trial
         }
-        return write_results(self.exp, self.out, per_trial, spent, builds)
+        return write_results(self.exp, self.out, per_trial, spent, builds, stopped_short)
+
+    def whole_seeds(self) -> tuple[list[int], list[str]]:
+        """The seeds whose every method's trial is done, in the plan's order, and the
+        trials left out (not done, or of a seed with one not done): what `--stop-short`
+        evaluates, so that every method is figured over the same seeds."""
+        states = self.states()
+        seeds = [
+            s
+            for s in self.exp.seeds
+            if all(states[trial_name(m, s)][0] == "done" for m in self.exp.methods)
+        ]
+        left = [t for t in self.exp.trials() if parse_trial(t)[1] not in seeds]
+        return seeds, left
+
+    def stop_short(self) -> dict[str, Any]:
+        """The experiment ended before its plan: train nothing more, evaluate the trials of
+        `whole_seeds` and write the results marked as stopped short (the trials left out
+        stay as they are: a later --resume without --stop-short trains them on)."""
+        if self.exp.evaluation is None or self.exp.evaluation.protocol != "zero-shot":
+            raise RuntimeError(
+                "--stop-short evaluates trial by trial: this experiment's evaluation is "
+                f"{'none' if self.exp.evaluation is None else self.exp.evaluation.protocol}"
+            )
+        seeds, left = self.whole_seeds()
+        if not seeds:
+            raise RuntimeError(
+                "--stop-short: no seed has every method's trial done; nothing to evaluate"
+            )
+        self.say(
+            f"stopping short of the plan: {len(seeds)} of {len(self.exp.seeds)} seeds have "
+            f"every method done; {len(left)} trial(s) left out"
+        )
+        evaluated = [trial_name(m, s) for s in seeds for m in self.exp.methods]
+        per_trial = self.evaluate(evaluated)
+        results = self.write_results(per_trial, {"seeds": seeds, "left_out": left})
+        self.say(f"wrote {self.out / 'results.json'}, results.md and figure.png (stopped short)")
+        return results
 
     def donors(self, trial: str) -> list[str]:
         """The other trials whose generation 0 this trial may take: the same
