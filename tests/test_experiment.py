@@ -218,6 +218,19 @@ def test_a_bad_experiment_config_is_one_clear_error(tmp_path, patch, message):
     assert str(err.value).startswith(str(path)) and "\n" not in str(err.value)
 
 
+def episodes(success: np.ndarray, strata: np.ndarray) -> dict[str, np.ndarray]:
+    """Evaluation episodes as a learner's record holds them: a crash where it failed."""
+    return {
+        "success": success,
+        "collision": 1 - success,
+        "length": np.where(success > 0, 300.0, 1000.0),
+        "reward": 20.0 * success,
+        "learner_crash": 1 - success,
+        "teammate_crash": np.zeros(success.size),
+        "stratum": strata,
+    }
+
+
 def test_methods_and_their_paired_differences_from_every_trials_episodes():
     """A method's figure is the mean over its seeds; its interval spans the seeds and the
     episodes; the difference of two methods on the same episodes says who is ahead, and a
@@ -229,16 +242,7 @@ def test_methods_and_their_paired_differences_from_every_trials_episodes():
     rank = np.random.default_rng(0).permutation(n)  # how hard each episode is: shared
 
     def trial(rate):
-        success = (rank < rate * n).astype(float)
-        per_episode = {
-            "success": success,
-            "collision": 1 - success,
-            "length": np.where(success > 0, 300.0, 1000.0),
-            "reward": 20.0 * success,
-            "learner_crash": 1 - success,
-            "teammate_crash": np.zeros(n),
-            "stratum": strata,
-        }
+        per_episode = episodes((rank < rate * n).astype(float), strata)
         return {
             "hot": {"per_episode": {k: list(v) for k, v in per_episode.items()}, "score_iqm": rate}
         }
@@ -290,17 +294,8 @@ def test_an_experiment_stopped_short_evaluates_its_whole_seeds_and_says_so(tmp_p
     rng = np.random.default_rng(0)
 
     def record(rate):
-        success = (rng.random(40) < rate).astype(float)
-        per_episode = {
-            "success": success,
-            "collision": 1 - success,
-            "length": np.where(success > 0, 300.0, 1000.0),
-            "reward": 20.0 * success,
-            "learner_crash": 1 - success,
-            "teammate_crash": np.zeros(40),
-            "stratum": np.arange(40) % 4,
-        }
-        figures = {k: float(np.mean(per_episode.get(k, success))) for k in METRICS}
+        per_episode = episodes((rng.random(40) < rate).astype(float), np.arange(40) % 4)
+        figures = {k: float(np.mean(per_episode.get(k, per_episode["success"]))) for k in METRICS}
         return {
             "hot": figures
             | {f"{k}_se": 0.05 for k in METRICS}
