@@ -51,7 +51,8 @@ wait or are done.
 
 The modules: `config` (the experiment config, `Experiment`), `tasks` (what runs as Ray
 tasks: a trial, a pool's reference returns, a trial's evaluation), `mirror` (a trial's
-folder mirrored to the driver's node), `runner` (`Runner`, the driver), `results` (per
+folder mirrored to the driver's node), `runner` (`Runner`, the driver), `inflight` (its
+trials in the air, resubmitted when their node is lost), `results` (per
 method, the paired differences, results.md) and `command` (`python -m hola_ray.experiment`,
 `hola-experiment`).
 """
