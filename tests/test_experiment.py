@@ -558,6 +558,45 @@ def test_finished_trials_are_published_and_committed_one_by_one(tmp_path):
     assert (docs / "open-teams-bar.png").read_bytes() == b"png"
 
 
+def test_the_status_of_an_experiment_is_every_trial_by_seed_and_method(tmp_path, capsys):
+    """`python -m hola_ray status DIR` on an experiment's directory: each trial's state from
+    its folder (a restored one is done) or the driver's progress.json (running, failed), the
+    generations left, and the time a generation took on disk (generation 0 aside)."""
+    from hola_ray.commands.status import main
+    from hola_ray.experiment.progress import standing
+    from hola_ray.experiment.tasks import RESTORED
+
+    out = tmp_path / "exp"
+    raw = {"base": str(ROOT / "configs" / "smoke.yaml"), "methods": ["hola", "sp"]}
+    (out / "trials" / "hola-s0").mkdir(parents=True)
+    (out / "experiment.yaml").write_text(yaml.safe_dump(raw | {"seeds": [0, 1]}))
+    done = out / "trials" / "hola-s0"
+    (done / RESTORED).write_text(json.dumps({"generation": 1}))
+    (done / "metrics.csv").write_text("generation,wall_s\n0,100.0\n1,10.0\n")
+    said = {"sp-s0": {"status": "running"}, "hola-s1": {"status": "failed"}}
+    (out / "progress.json").write_text(json.dumps(said))
+
+    view = standing(out)
+    assert {t: r["state"] for t, r in view["trials"].items()} == {
+        "hola-s0": "done",
+        "sp-s0": "running",
+        "hola-s1": "failed",
+        "sp-s1": "new",
+    }
+    assert view["generations_left"] == 3 and view["s_per_generation"] == 10.0
+    assert main([str(out)]) == 0
+    said = capsys.readouterr().out.splitlines()
+    assert said[0].endswith("= 4 trials; 1 done, 1 running, 1 failed, 1 not started")
+    assert said[1].split() == ["seed", "hola", "sp"]
+    assert said[2].split() == ["0", "done", "0/1"] and said[3].split() == [
+        "1",
+        "0/1",
+        "FAILED",
+        "-",
+    ]
+    assert "3 generations left: about 0.0 h" in said[4] and "at the 10 s a generation" in said[4]
+
+
 def test_the_progress_line_says_the_time_left_at_this_runs_pace():
     from hola_ray.experiment.runner import time_left
 

@@ -1,4 +1,5 @@
-"""Where a run stands: `python -m hola_ray status RUN_DIR [--live] [--plot]`.
+"""Where a run stands: `python -m hola_ray status RUN_DIR [--live] [--plot]`; given an
+experiment's directory, where each of its trials stands (`hola_ray.experiment.progress`).
 
 Reads the run directory: last completed generation, population with slot, η, φ and node
 value, the last metrics row. With --live it also asks the running
@@ -331,6 +332,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print the view as JSON")
     parser.add_argument("--plot", action="store_true", help="write RUN_DIR/progress.png")
     args = parser.parse_args(argv)
+    if (args.run_dir / "experiment.yaml").is_file():  # an experiment's directory
+        from hola_ray.experiment.progress import format_standing, standing
+
+        view = standing(args.run_dir)
+        print(json.dumps(view, indent=1) if args.json else format_standing(view))
+        return 0
     try:
         view = disk_view(args.run_dir)
     except FileNotFoundError as err:
