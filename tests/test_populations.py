@@ -145,6 +145,39 @@ def test_a_carried_check_outlasts_its_machine(tmp_path, monkeypatch):
     assert not carry.folder.exists()
 
 
+def test_show_reads_a_build_in_progress_from_its_carried_check(tmp_path, monkeypatch, capsys):
+    """`populations show NAME` on a build not yet shipped: its carried check's env steps
+    against the config's cap, and its last checks with the members at the bar it stops at;
+    `show` alone lists it after the shipped ones."""
+    import json
+
+    from hola_ray.commands import populations
+
+    monkeypatch.setattr(populations, "BUILDS", tmp_path / "builds")
+    folder = tmp_path / "builds" / "mep-3v2-s1"  # its config's stop: 60 % / 35 %, 2 in a row
+    folder.mkdir(parents=True)
+    checks = [
+        {"env_steps": 1_000_000, "success": [0.1, 0.2], "collision": [0.9, 0.8]},
+        {"env_steps": 2_000_000, "success": [0.61, 0.7], "collision": [0.35, 0.36]},
+    ]
+    progress = {"members": ["a", "b"], "env_steps": 2_000_000, "checks": checks}
+    (folder / "progress.json").write_text(json.dumps(progress))
+    cap = RunConfig.from_yaml(populations.CONFIGS / "mep-3v2-s1.yaml").pretrain.env_steps
+    assert populations.main(["show", "mep-3v2-s1"]) == 0  # shipped: the population, not this
+    assert "build mep-3v2-s1 in progress" not in capsys.readouterr().out
+    monkeypatch.setattr(populations, "names", lambda: [])
+    assert populations.main(["show", "mep-3v2-s1"]) == 0
+    said = capsys.readouterr().out.splitlines()
+    assert said[0].startswith(
+        f"build mep-3v2-s1 in progress (its check in {folder}): 2,000,000 env steps of its "
+        f"{cap:,} cap; it stops once every member as copies succeeds >= 60% and collides <= 35%"
+    )
+    assert said[2].split() == ["1,000,000", "10", "20", "90", "80", "0", "of", "2"]
+    assert said[3].split() == ["2,000,000", "61", "70", "35", "36", "1", "of", "2"]
+    assert populations.main(["show"]) == 0
+    assert "build mep-3v2-s1 in progress" in capsys.readouterr().out
+
+
 def test_a_build_says_which_members_miss_specs_bar():
     """MEP's members and FCP's end checkpoints are held to the contract's bar, a start checkpoint is
     not; mep-3v2-s1's first build read 39.0 % collision for its member 0."""

@@ -237,6 +237,40 @@ def build(name: str, episodes: int, progress: bool = True, carry: bool = False) 
     return out
 
 
+def building() -> list[str]:
+    """The builds in progress whose check is carried under pools/builds/, by name."""
+    return sorted(p.parent.name for p in BUILDS.glob(f"*/{PROGRESS}"))
+
+
+def show_build(name: str, last: int = 5) -> str:
+    """A build in progress from its carried check: its env steps against its cap, and its
+    `last` checks, each member as a team of its own copies against the figures the build
+    stops at."""
+    from hola_ray.methods.config import RunConfig
+
+    progress = json.loads((BUILDS / name / PROGRESS).read_text())
+    pre = RunConfig.from_yaml(CONFIGS / f"{name}.yaml").pretrain
+    lines = [
+        f"build {name} in progress (its check in {BUILDS / name}): {progress['env_steps']:,} "
+        f"env steps of its {pre.env_steps:,} cap; it stops once every member as copies "
+        f"succeeds >= {pre.until_success:.0%} and collides <= {pre.until_collision:.0%}, "
+        f"{pre.until_in_a_row} checks in a row",
+        f"  {'env steps':>12}  {'success %, each member':<24} {'collision %':<24} at the bar",
+    ]
+    for check in progress["checks"][-last:]:
+        ok = sum(
+            a >= pre.until_success and c <= pre.until_collision
+            for a, c in zip(check["success"], check["collision"], strict=True)
+        )
+        success = " ".join(f"{100 * x:3.0f}" for x in check["success"])
+        collision = " ".join(f"{100 * x:3.0f}" for x in check["collision"])
+        lines.append(
+            f"  {check['env_steps']:>12,}  {success:<24} {collision:<24} "
+            f"{ok} of {len(check['success'])}"
+        )
+    return "\n".join(lines)
+
+
 def show(population: str | Path) -> str:
     folder = population_dir(population)
     manifest = read(folder)
@@ -271,20 +305,26 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="mirror each check to pools/builds/NAME (commit it) and resume from it",
     )
-    s = sub.add_parser("show", help="a shipped population's members, roles and figures")
-    s.add_argument("name", nargs="?", default=None, help="default: every shipped one")
+    s = sub.add_parser(
+        "show", help="a shipped population's members, roles and figures, or a build's checks"
+    )
+    s.add_argument("name", nargs="?", default=None, help="default: every one, shipped or building")
     args = parser.parse_args(argv)
     try:
         if args.command == "build":
             folder = build(args.name, args.episodes, not args.quiet, args.carry)
             print(f"population {args.name} written to {folder}")
             print(show(folder))
+        elif args.name in building() and args.name not in names():
+            print(show_build(args.name))
         else:
             shown = [args.name] if args.name else names()
             if not shown:
                 print(f"no population shipped in {POPULATIONS_DIR} yet")
             for n in shown:
                 print(show(n))
+            for n in building() if args.name is None else ():
+                print(show_build(n))
     except PopulationError as err:
         return fail(str(err))
     return 0
