@@ -332,7 +332,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print the view as JSON")
     parser.add_argument("--plot", action="store_true", help="write RUN_DIR/progress.png")
     args = parser.parse_args(argv)
-    if (args.run_dir / "experiment.yaml").is_file():  # an experiment's directory
+    from hola_ray.experiment.config import CONFIG_NAME
+
+    if (args.run_dir / CONFIG_NAME).is_file():  # an experiment's directory
         from hola_ray.experiment.progress import format_standing, standing
 
         view = standing(args.run_dir)

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from hola_ray.experiment.config import CONFIG_NAME, Experiment, trial_name
-from hola_ray.experiment.tasks import trial_state
+from hola_ray.experiment.runner import Runner
 
 
 def standing(out: Path) -> dict[str, Any]:
@@ -24,17 +24,17 @@ def standing(out: Path) -> dict[str, Any]:
     generations on disk, wall time) and the generations left."""
     out = Path(out)
     experiment = Experiment.from_yaml(out / CONFIG_NAME)
+    runner = Runner(experiment, out)
     said_path = out / "progress.json"
     said = json.loads(said_path.read_text()) if said_path.is_file() else {}
     trials: dict[str, dict[str, Any]] = {}
     walls: list[float] = []
-    for t in experiment.trials():
-        generations = experiment.run_config(t).generations
-        state, last = trial_state(out / "trials" / t, generations)
+    for t, (state, last) in runner.states().items():
         if state != "done" and said.get(t, {}).get("status") in ("running", "failed"):
             state = said[t]["status"]
+        generations = runner.configs[t].generations
         trials[t] = {"state": state, "generation": last, "generations": generations}
-        walls += _generation_walls(out / "trials" / t / "metrics.csv")
+        walls += _generation_walls(runner.trial_dir(t) / "metrics.csv")
     left = sum(
         0 if r["state"] == "done" else r["generations"] - (r["generation"] or 0)
         for r in trials.values()
