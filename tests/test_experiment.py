@@ -440,6 +440,7 @@ def test_an_open_team_evaluation_figures_each_method_over_its_seeds(tmp_path):
         configs={t: SimpleNamespace(env=envs[t.rpartition("-s")[0]]) for t in trials},
         learner_file=lambda t: tmp_path / f"{t}.pt",
         out=tmp_path / "exp",
+        eval_dir=tmp_path / "exp" / "evaluation",
         say=lambda line: None,
     )
     results = Runner.evaluate_open_teams(runner)
@@ -453,6 +454,13 @@ def test_an_open_team_evaluation_figures_each_method_over_its_seeds(tmp_path):
     assert (tmp_path / "exp" / "open-teams-bar.png").is_file()
     assert json.loads((tmp_path / "exp" / "results.json").read_text())["cells"][0]["pool"] == "het"
     assert results["protocol"]["evaders"] == 2 and len(cell["learners"]) == 2
+    # each cell kept as it is played, so a resumed experiment plays only the cells left
+    kept = tmp_path / "exp" / "evaluation" / "open-teams"
+    assert sorted(p.name for p in kept.iterdir()) == ["bar-open-4-het.json", "bar-open-4-het.npz"]
+    said = []
+    runner.say = said.append
+    assert json.dumps(Runner.evaluate_open_teams(runner)) == json.dumps(results)
+    assert said[0].endswith("(kept from an earlier run)"), said
     runner.configs["hola-s1"] = SimpleNamespace(env=PursuitConfig(n_evaders=1))
     with pytest.raises(RuntimeError, match="different numbers of evaders"):
         Runner.evaluate_open_teams(runner)

@@ -33,6 +33,8 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import json
+import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -208,6 +210,54 @@ def lead(
     }
 
 
+class CellCache:
+    """Every played cell kept in `folder` under the `settings` it was played with: its row
+    (`<cell>.json`) and every seat's episodes (`<cell>.npz`, for the leads). A grid stopped
+    part-way plays only the cells it had not kept; a cell kept under other settings is
+    played again."""
+
+    SEP = "|"
+
+    def __init__(self, folder: Path, settings: Mapping[str, Any]):
+        self.folder = Path(folder)
+        self.settings = json.loads(json.dumps(dict(settings)))  # as a kept file reads back
+
+    def _files(self, key: tuple[str, str, int, str]) -> tuple[Path, Path]:
+        stem = "-".join(str(k) for k in key)
+        return self.folder / f"{stem}.json", self.folder / f"{stem}.npz"
+
+    def get(self, key: tuple[str, str, int, str]) -> tuple[dict, dict] | None:
+        row_file, episodes_file = self._files(key)
+        if not row_file.is_file():
+            return None
+        kept = json.loads(row_file.read_text())
+        if kept.get("settings") != self.settings or not episodes_file.is_file():
+            return None
+        played: dict[str, dict[str, np.ndarray]] = {}
+        with np.load(episodes_file, allow_pickle=False) as data:
+            for k in data.files:
+                name, field = k.split(self.SEP, 1)
+                played.setdefault(name, {})[field] = data[k]
+        return kept["row"], played
+
+    def put(self, key: tuple[str, str, int, str], row: Mapping, played: Mapping) -> None:
+        """The episodes first, the row (which `get` looks for) last, each whole or not at all."""
+        self.folder.mkdir(parents=True, exist_ok=True)
+        row_file, episodes_file = self._files(key)
+        arrays = {
+            f"{name}{self.SEP}{field}": np.asarray(values)
+            for name, fields in played.items()
+            for field, values in fields.items()
+        }
+        tmp = episodes_file.with_name(f".{episodes_file.name}")
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+        os.replace(tmp, episodes_file)
+        tmp = row_file.with_name(f".{row_file.name}")
+        tmp.write_text(json.dumps({"settings": self.settings, "row": row}, indent=1))
+        os.replace(tmp, row_file)
+
+
 def run_protocol(
     learners: Mapping[str, Callable[[PursuitConfig], Policy]],
     pools: Sequence[str],
@@ -220,24 +270,33 @@ def run_protocol(
     say: Callable[[str], None] = print,
     groups: Groups | None = None,
     training_seeds: Mapping[str, Sequence[int]] | None = None,
+    cache: CellCache | None = None,
 ) -> dict[str, Any]:
     """Every cell of the protocol (module doc). `learners`: name → a function of a cell's
     scenario giving the learner as it plays it (`learner_loader`). `groups`: method → its
     learners (default: each learner a method of its own); `training_seeds`: each method's
-    seeds, in the order of its learners (methods with the same ones resampled as pairs)."""
+    seeds, in the order of its learners (methods with the same ones resampled as pairs);
+    `cache`: the cells already played under the same settings, taken as kept."""
     groups = {m: list(v) for m, v in (groups or {n: [n] for n in learners}).items()}
     pairs = list(itertools.combinations(groups, 2))
     cells: list[dict[str, Any]] = []
     per_mode: dict[tuple[str, str], list] = {}
-    for arena, mode, size, pool in itertools.product(arenas, modes, sizes, pools):
+    for key in itertools.product(arenas, modes, sizes, pools):
+        arena, mode, size, pool = key
         start = time.perf_counter()
-        config = cell_scenario(base, arena, mode, size)
-        members = list(load_pool(pool, config).values())
-        references = load_references(config)
-        seated = {name: make(config) for name, make in learners.items()}
-        row, played = evaluate_cell(
-            seated, members, references, config, episodes, seeds, groups, training_seeds
-        )
+        kept = cache.get(key) if cache else None
+        if kept is None:
+            config = cell_scenario(base, arena, mode, size)
+            members = list(load_pool(pool, config).values())
+            references = load_references(config)
+            seated = {name: make(config) for name, make in learners.items()}
+            row, played = evaluate_cell(
+                seated, members, references, config, episodes, seeds, groups, training_seeds
+            )
+            if cache:
+                cache.put(key, row, played)
+        else:
+            row, played = kept
         cells.append({"arena": arena, "mode": mode, "size": size, "pool": pool} | row)
         per_mode.setdefault((mode, pool), []).append(played)
         figures = ", ".join(
@@ -247,7 +306,7 @@ def run_protocol(
         )
         say(
             f"[{arena} {mode} {size} {POOL_LABELS.get(pool, pool)}] success {figures} "
-            f"({time.perf_counter() - start:.0f} s)"
+            + ("(kept from an earlier run)" if kept else f"({time.perf_counter() - start:.0f} s)")
         )
     leads = {
         f"{mode}/{pool}": {

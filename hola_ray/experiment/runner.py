@@ -311,8 +311,11 @@ class Runner:
         each method figured over its seeds (paired where the methods share them), written
         to OUT (results.json, results.md, open-teams-<arena>.png), where the publisher
         finds them."""
+        from hola_ray import homes
         from hola_ray.config.scenario import ARENAS
         from hola_ray.evaluation import open_teams
+        from hola_ray.evaluation.scale import reference_fingerprint
+        from hola_ray.evaluation.zero_shot import pool_fingerprints
 
         trials = self.exp.trials()
         evaders = {self.configs[t].env.n_evaders for t in trials}
@@ -328,6 +331,22 @@ class Runner:
             raise RuntimeError(f"{err}: evaluate them in separate experiments") from err
         settings = self.exp.evaluation
         groups = {m: [t for t in trials if parse_trial(t)[0] == m] for m in self.exp.methods}
+        training_seeds = {m: [parse_trial(t)[1] for t in ts] for m, ts in groups.items()}
+        # each cell kept in OUT/evaluation/open-teams as it is played: a resume plays the rest
+        cache = open_teams.CellCache(
+            self.eval_dir / "open-teams",
+            {
+                "learners": {t: homes.sha256(self.learner_file(t)) for t in trials},
+                "scenario": base.to_dict(),
+                "episodes": settings.episodes,
+                "seeds": list(settings.seeds),
+                "pool_manifests": pool_fingerprints(settings.pools),
+                "reference": reference_fingerprint(),
+                "groups": groups,
+                "training_seeds": training_seeds,
+                "format": EVALUATION_FORMAT,
+            },
+        )
         results = open_teams.run_protocol(
             {t: open_teams.learner_loader(self.learner_file(t)) for t in trials},
             list(settings.pools),
@@ -339,7 +358,8 @@ class Runner:
             list(settings.sizes or open_teams.SIZES),
             say=self.say,
             groups=groups,
-            training_seeds={m: [parse_trial(t)[1] for t in ts] for m, ts in groups.items()},
+            training_seeds=training_seeds,
+            cache=cache,
         )
         _atomic_json(self.out / "results.json", results)
         written = open_teams.report(results, self.out)

@@ -207,3 +207,40 @@ def test_a_d3qn_export_plays_every_cell_as_a_learner():
         learner = make(cell)
         result = rollout(cell, [learner] * cell.n_pursuers, 4, seed=1)
         assert result.success.shape == (4,)
+
+
+def test_a_grid_stopped_part_way_plays_only_the_cells_it_had_not_kept(tmp_path):
+    """A cell kept by a first run (stopped after it) is taken as it was, the others are
+    played, and the whole equals an uninterrupted run's, leads included; under other
+    settings a kept cell is played again."""
+    path = learner_file(tmp_path, "slots", 5, 5, 2)
+    played_sizes = []
+
+    def loader(config):
+        played_sizes.append(config.n_pursuers)
+        return open_teams.learner_loader(path)(config)
+
+    grid = {
+        "pools": ["het"],
+        "base": PursuitConfig(n_evaders=2, horizon=150),
+        "episodes": 4,
+        "seeds": [0],
+        "arenas": ["open"],
+        "modes": ["zero-shot"],
+        "say": lambda line: None,
+    }
+    whole = open_teams.run_protocol({"a": loader}, sizes=[2, 3], **grid)
+    kept = open_teams.CellCache(tmp_path / "kept", {"learners": {"a": "sha of a"}})
+    open_teams.run_protocol({"a": loader}, sizes=[2], cache=kept, **grid)
+    assert sorted(p.name for p in (tmp_path / "kept").iterdir()) == [
+        "open-zero-shot-2-het.json",
+        "open-zero-shot-2-het.npz",
+    ]
+    played_sizes.clear()
+    resumed = open_teams.run_protocol({"a": loader}, sizes=[2, 3], cache=kept, **grid)
+    assert played_sizes == [3]
+    assert json.dumps(resumed) == json.dumps(whole)
+    other = open_teams.CellCache(tmp_path / "kept", {"learners": {"a": "sha of another a"}})
+    played_sizes.clear()
+    open_teams.run_protocol({"a": loader}, sizes=[2], cache=other, **grid)
+    assert played_sizes == [2]
