@@ -2,7 +2,7 @@
 reach at the step it happened.
 
     python benchmarks/crashes.py POLICY [POLICY ...] [--teammates copies|validation|NAME NAME]
-        [--episodes 200] [--seed 5] [--flown]
+        [--episodes 200] [--seed 5] [--flown] [--judged]
 
 POLICY: a run directory (its learner.pt), a generation folder or an export file, played in
 its own trained scenario. The learner sits in seat 0; its teammates are its own copies
@@ -13,7 +13,10 @@ bar), a `mate` (another active pursuer within the pursuer–pursuer distance) or
 (anything else: a disabled pursuer's last position). Prints one line per policy and as its
 last line one JSON object. It measures; it never chooses a setting. `--flown` flies the
 same episodes as Crazyflies (`hola_ray.flight`, judged on the drones' true positions) and
-prints both: what the drones hit that the arena's pursuers did not.
+prints both: what the drones hit that the arena's pursuers did not. `--judged` plays each
+policy in the scenario it is held to its bar in (`PursuitConfig.judged`: a member of an open
+teams' population as three copies in the paper's arena, read in its own slots), and a `bar`
+is then any obstacle, a disc included.
 """
 
 from __future__ import annotations
@@ -42,6 +45,8 @@ def bar_distance(config: PursuitConfig, p: np.ndarray) -> float:
         dx = max(abs(p[0] - cx) - w / 2, 0.0)
         dy = max(abs(p[1] - cy) - h / 2, 0.0)
         best = min(best, float(np.hypot(dx, dy)))
+    for cx, cy, r in config.discs:
+        best = min(best, max(float(np.hypot(p[0] - cx, p[1] - cy)) - r, 0.0))
     return best
 
 
@@ -127,10 +132,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=200)
     parser.add_argument("--seed", type=int, default=5)
     parser.add_argument("--flown", action="store_true", help="also flown as Crazyflies")
+    parser.add_argument(
+        "--judged", action="store_true", help="in the scenario a member is held to its bar in"
+    )
     args = parser.parse_args(argv)
     out = {}
     for path in args.policies:
         config = trained_scenario(path) or PursuitConfig()
+        if args.judged:
+            config = config.judged()
         learner = load_policy(path, config)
         if args.teammates == ["copies"]:
             mates = [learner] * (config.n_pursuers - 1)

@@ -205,9 +205,13 @@ def build(name: str, episodes: int, progress: bool = True, carry: bool = False) 
     roles = config.strategy.member_roles(nodes)
     judged = config.env.judged()
     scenario = f"{judged.n_pursuers}v{judged.n_evaders}"
-    built = {
-        k: gen0[k] for k in ("pretrain_env_steps", "pretrain_s", "pretrain_competent") if k in gen0
-    }
+    kept = (
+        "pretrain_env_steps",
+        "pretrain_s",
+        "pretrain_competent",
+        "pretrain_members_from_env_steps",
+    )
+    built = {k: gen0[k] for k in kept if k in gen0}
     if run.pretrain.joinpath(PROGRESS).is_file():  # every check, the deciding one included
         built["checks"] = json.loads(run.pretrain.joinpath(PROGRESS).read_text()).get("checks", [])
     out = POPULATIONS_DIR / name
@@ -271,6 +275,20 @@ def show_build(name: str, last: int = 5) -> str:
     return "\n".join(lines)
 
 
+def _started_from(manifest: dict[str, Any]) -> str:
+    """ ", its members started from X's (N env steps)" for a build with `pretrain.members_from`."""
+    named = manifest.get("config_values", {}).get("pretrain", {}).get("members_from", "none")
+    if named == "none":
+        return ""
+    before = manifest.get("built", {}).get("pretrain_members_from_env_steps")
+    said = (
+        f" ({before:,.0f} env steps)"
+        if isinstance(before, (int, float)) and before == before
+        else ""
+    )
+    return f", its members started from {Path(named).name}'s{said}"
+
+
 def show(population: str | Path) -> str:
     folder = population_dir(population)
     manifest = read(folder)
@@ -281,6 +299,7 @@ def show(population: str | Path) -> str:
         f"{len(manifest['members'])} members, seed {manifest['seed']}, built at commit "
         f"{str(manifest['commit'])[:12]} from {manifest['config']}"
         + (f", {built['pretrain_env_steps']:,} env steps" if "pretrain_env_steps" in built else "")
+        + _started_from(manifest)
     ]
     for mid, e in manifest["members"].items():
         lines.append(

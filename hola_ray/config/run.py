@@ -57,6 +57,14 @@ class PretrainConfig:
     checkpoint; with `population: none`, random); PBT, whose generations train its agents
     in turn, ignores it"""
 
+    members_from: str = "none"
+    """a population (a shipped one's name, or a folder holding a population manifest, kept
+    below its bar included) whose members' weights pre-training starts from, node k as
+    member k, instead of RLlib's initialisation: a build that trains on from another, under
+    a changed reward, say (`mep-open5-s1` from `mep-open5-s0`, docs/open-teams.md). It must
+    hold `population.initial_size` members observed as this run observes. Its own env
+    steps are its manifest's, not this build's; none: off"""
+
     start_agent: str = "none"
     """a shipped population (as `population` names one) whose last node every method's
     learner starts from at generation 1, in place of `learner_start`: a neutral start, the
@@ -91,6 +99,12 @@ class PretrainConfig:
             "pretrain.population",
             "none or a shipped population's name or folder",
             self.population,
+        )
+        require(
+            isinstance(self.members_from, str) and bool(self.members_from),
+            "pretrain.members_from",
+            "none or a population's name or folder",
+            self.members_from,
         )
         require(
             isinstance(self.start_agent, str) and bool(self.start_agent),

@@ -89,7 +89,10 @@ class _Pretraining:
             states, progress = saved
             self.done, self.judge_s = int(progress["env_steps"]), float(progress["judge_s"])
             self.checks = list(progress.get("checks", []))
+        start = self.members_from() if saved is None and p.members_from != "none" else None
         self.mep = self.oracle(0.0 if self.bonus_ends(self.done) else alpha)
+        if start is not None:
+            self.mep.set_trained_weights(dict(zip(self.mep.members, start, strict=True)))
         if saved is not None:
             self.mep.set_trained_weights(states)
             self.mep.start_schedules_at(self.done)  # a decaying lr goes on from the check
@@ -97,6 +100,32 @@ class _Pretraining:
             ctx.say(f"pre-train: resumed after {self.done:,} env steps ({ctx.run.pretrain})")
         self.resumed = self.done
         self.in_a_row = self.passing() if p.until else 0
+
+    def members_from(self) -> list[dict[str, Any]]:
+        """`pretrain.members_from`'s members' RLlib states, node by node: the starting
+        weights of this build's, node k's as member k's, verified as a shipped population
+        is (files, observation layout, apart from the pools) before anything starts."""
+        from hola_ray.population import shipped
+
+        c = self.ctx.config
+        folder = shipped.population_dir(c.pretrain.members_from, c.seed)
+        donor, manifest = shipped.load(
+            folder, c.seed, c.layout(), str(shipped.read(folder)["kind"])
+        )
+        nodes = sorted(int(e["node"]) for e in manifest["members"].values())
+        if len(nodes) != c.population.initial_size:
+            raise shipped.PopulationError(
+                f"pretrain.members_from {donor.root.name} holds {len(nodes)} members; "
+                f"this build trains {c.population.initial_size} (population.initial_size)"
+            )
+        self.extra["pretrain_members_from_env_steps"] = float(
+            manifest.get("built", {}).get("pretrain_env_steps", float("nan"))
+        )
+        self.ctx.say(
+            f"pre-train: the members start from {donor.root.name}'s nodes "
+            f"{', '.join(map(str, nodes))} (built at commit {str(manifest.get('commit'))[:8]})"
+        )
+        return [donor.load_member_state(v) for v in nodes]
 
     def oracle(self, weight: float) -> Oracle:
         from hola_ray.oracle.trainer import Oracle

@@ -54,6 +54,23 @@ def test_straight_flyers_hit_the_bars_above_them_and_never_each_other():
     assert sum(result["crashes"].values()) == played.crashed.sum()
 
 
+def test_a_disc_is_an_obstacle_where_straight_flyers_meet_one():
+    """In the `blocks` arena, pursuers spawned under the disc fly into it: a `bar` (an
+    obstacle), not a `wreck` (what a crash into a disc read as before discs counted)."""
+    config = PursuitConfig(n_pursuers=3, n_evaders=1).in_arena("blocks")
+    episodes, seed = 60, 9
+    result = crashes_module.crashes(config, [Straight(config)] * 3, episodes, seed)
+    env = BatchedPursuit(config, episodes)
+    env.reset(seeds=episode_seeds(seed, episodes))
+    x = env.pursuer_pos[..., 0]
+    (cx, _, r), *_ = config.discs
+    under_disc = np.abs(x - cx) < r + config.safe_radius - 0.01
+    assert under_disc.sum() > 1
+    # one straight flyer may meet a wreck, as in the paper's arena; never all under the disc
+    assert result["crashes"]["wreck"] < under_disc.sum() and result["crashes"]["mate"] == 0
+    assert result["crashes"]["bar"] >= under_disc.sum()
+
+
 def test_greedy_copies_crash_mostly_into_each_other():
     config = PursuitConfig(n_pursuers=3, n_evaders=1)
     result = crashes_module.crashes(config, [Greedy(config)] * 3, 100, 3)

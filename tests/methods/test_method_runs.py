@@ -531,6 +531,38 @@ def test_a_shipped_population_is_built_verified_adopted_and_refused_when_it_does
     for entry in manifest["members"].values():
         assert (r.root / entry["file"]).read_bytes() == (folder / entry["file"]).read_bytes()
 
+    # a build that trains on from tiny-s0's members (`pretrain.members_from`), under another
+    # reward: its members start as tiny-s0's, node k's weights as member k's
+    started.clear()
+    on = other | {"pretrain": {"members_from": "tiny-s0", "env_steps": 500}}
+    (configs / "tiny-s1.yaml").write_text(yaml.safe_dump(on))
+    assert populations.main(["build", "tiny-s1", "--episodes", "4"]) == 0
+    said = capsys.readouterr().out
+    assert "pre-train: the members start from tiny-s0's nodes 0, 1, 2 (built at commit" in said
+    first = started[0]
+    assert sorted(first) == ["member_0", "member_1", "member_2"]
+    for node in range(3):
+        for name, value in r.load_member_state(node).items():
+            assert (first[f"member_{node}"][name] == value).all(), (node, name)
+    trained_on = RunDir(tmp_path / "runs" / "tiny-s1")
+    assert trained_on.metrics_rows()[0]["pretrain_env_steps"] >= 500
+    assert populations.main(["show", "tiny-s1"]) == 0
+    assert "its members started from tiny-s0's" in capsys.readouterr().out
+    for node in range(3):  # and then trained: not tiny-s0's any more
+        assert any(
+            (a != b).any()
+            for a, b in zip(
+                trained_on.load_member_export(node)["weights"],
+                r.load_member_export(node)["weights"],
+                strict=True,
+            )
+        )
+    four = on | {"population": smoke["population"] | {"initial_size": 4}}
+    with pytest.raises(
+        shipped.PopulationError, match="tiny-s0 holds 3 members; this build trains 4"
+    ):
+        train(four, tmp_path / "four", capsys)
+
     def refused(patch: dict, folder_used=folder) -> str:
         config = RunConfig.from_dict(smoke | {"pretrain": {"population": str(folder_used)}} | patch)
         with pytest.raises(shipped.PopulationError) as err:
