@@ -22,6 +22,7 @@ from it; once the population is shipped the carried check is removed.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import sys
@@ -281,11 +282,8 @@ def _started_from(manifest: dict[str, Any]) -> str:
     if named == "none":
         return ""
     before = manifest.get("built", {}).get("pretrain_members_from_env_steps")
-    said = (
-        f" ({before:,.0f} env steps)"
-        if isinstance(before, (int, float)) and before == before
-        else ""
-    )
+    known = isinstance(before, (int, float)) and math.isfinite(before)
+    said = f" ({before:,.0f} env steps)" if known else ""
     return f", its members started from {Path(named).name}'s{said}"
 
 
