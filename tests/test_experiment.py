@@ -566,6 +566,38 @@ def test_finished_trials_are_published_and_committed_one_by_one(tmp_path):
     assert (docs / "open-teams-bar.png").read_bytes() == b"png"
 
 
+def test_the_open_team_grids_cells_are_published_as_played_and_restored(tmp_path):
+    """A cell of the open-team grid is published once its row is written (its episodes
+    with it; one being written waits), again when played anew, and a restore on a new
+    machine puts the cells back where the grid looks for them."""
+    from hola_ray.experiment import publish
+
+    run, docs, again = tmp_path / "run", tmp_path / "docs", tmp_path / "again"
+    (run / "trials").mkdir(parents=True)
+    (run / "experiment.yaml").write_text("seeds: [0]\n")
+    kept = run / "evaluation" / "open-teams"
+    kept.mkdir(parents=True)
+    (kept / "zero-shot-open-2-HeT.npz").write_bytes(b"episodes")
+    (kept / "zero-shot-open-2-HeT.json").write_text('{"row": 1}')
+    (kept / "zero-shot-open-3-HeT.npz").write_bytes(b"being written")  # no row yet
+    assert publish.publish(run, docs) == ["1 open-team cell(s)"]
+    cells = docs / "evaluation" / "open-teams"
+    assert sorted(f.name for f in cells.iterdir()) == [
+        "zero-shot-open-2-HeT.json",
+        "zero-shot-open-2-HeT.npz",
+    ]
+    assert publish.publish(run, docs) == []  # nothing new
+    (kept / "zero-shot-open-2-HeT.json").write_text('{"row": 2}')  # played again
+    (kept / "zero-shot-open-2-HeT.npz").write_bytes(b"again")
+    assert publish.publish(run, docs) == ["1 open-team cell(s)"]
+    assert (cells / "zero-shot-open-2-HeT.npz").read_bytes() == b"again"
+    publish.restore(docs, again)
+    back = again / "evaluation" / "open-teams"
+    assert (back / "zero-shot-open-2-HeT.json").read_text() == '{"row": 2}'
+    assert (back / "zero-shot-open-2-HeT.npz").read_bytes() == b"again"
+    assert not (back / "zero-shot-open-3-HeT.npz").exists()
+
+
 def test_the_status_of_an_experiment_is_every_trial_by_seed_and_method(tmp_path, capsys):
     """`python -m hola_ray status DIR` on an experiment's directory: each trial's state from
     its folder (a restored one is done) or the driver's progress.json (running, failed), the

@@ -8,8 +8,9 @@ population build), `metrics.csv`, `best.json`, `best.pt` (about 26 kB: anyone ca
 compared learner) and `learner.json`; each learner's evaluation (`evaluation/TRIAL.json`) as
 it is played; then, once written, the experiment's `experiment.yaml`,
 `results.json`, `results.md` and `figure.png` (the open-team grid's `open-teams-<arena>.png`
-in its place). `--commit` commits each new trial on its own
-(`git commit` in the repository that holds DOCS_DIR), so a machine replaced mid-experiment
+in its place). The open-team grid's cells are copied as they are played
+(`evaluation/open-teams/`), and restored with the trials. `--commit` commits each new trial on
+its own (`git commit` in the repository that holds DOCS_DIR), so a machine replaced mid-experiment
 loses at most the trials in progress; `--watch` polls until the results are written (and,
 started beside a new experiment, until it has written its folder).
 
@@ -32,6 +33,7 @@ from pathlib import Path
 
 TRIAL_FILES = ("config.yaml", "metrics.csv", "best.json", "best.pt", "learner.json")
 RESULT_FILES = ("experiment.yaml", "results.json", "results.md", "figure.png")
+CELLS = "open-teams"  # the open-team grid's cells, kept as played under evaluation/
 
 
 def done_trials(run: Path) -> list[str]:
@@ -79,6 +81,9 @@ def publish(run: Path, docs: Path) -> list[str]:
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(figures, target)
             copied.append(f"evaluation of {figures.stem}")
+    cells = publish_cells(run / "evaluation" / CELLS, docs / "evaluation" / CELLS)
+    if cells:
+        copied.append(f"{cells} open-team cell(s)")
     results = run / "results.json"
     if results.is_file() and (
         not (docs / "results.json").is_file()
@@ -90,6 +95,23 @@ def publish(run: Path, docs: Path) -> list[str]:
         for figure in sorted(run.glob("open-teams-*.png")):  # the open-team grid's, per arena
             shutil.copyfile(figure, docs / figure.name)
         copied.append("results")
+    return copied
+
+
+def publish_cells(kept: Path, target: Path) -> int:
+    """Copy the open-team grid's cells played since the last call (each cell's episodes, then
+    its row, which the grid looks for), so a grid that spans machines plays each cell once.
+    Returns how many were copied."""
+    copied = 0
+    for row in sorted(kept.glob("*.json")) if kept.is_dir() else []:
+        episodes = row.with_suffix(".npz")
+        done = target / row.name
+        if not episodes.is_file() or done.is_file() and done.read_bytes() == row.read_bytes():
+            continue
+        target.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(episodes, target / episodes.name)
+        shutil.copyfile(row, done)
+        copied += 1
     return copied
 
 
@@ -132,6 +154,7 @@ def restore(docs: Path, run: Path) -> list[str]:
         if not target.is_file():
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(figures, target)
+    publish_cells(docs / "evaluation" / CELLS, run / "evaluation" / CELLS)  # cells played
     return restored
 
 
